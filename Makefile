@@ -1,0 +1,47 @@
+# One entry point. `make run`: set up and reproduce the default experiment; `make test`: set up
+# and run the test suite (what .ci/run calls).
+SHELL := /bin/bash
+PYTHON ?= python3.11
+VENV ?= .venv
+BIN := $(VENV)/bin
+export MUJOCO_GL ?= egl
+export DVC_NO_ANALYTICS := 1
+export PYTHONUNBUFFERED := 1
+
+.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video clean
+
+run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
+	$(BIN)/python scripts/compose_params.py
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro
+
+test: setup ## set up and run the test suite (not the slow benchmarks)
+	$(BIN)/python -m pytest
+
+test-all: setup ## the test suite including slow tests
+	$(BIN)/python -m pytest -m ""
+
+setup: system-deps $(VENV)/.installed
+
+system-deps:
+	@bash scripts/install_system_deps.sh
+
+$(VENV)/.installed: pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q torch==2.13.0     # the CPU wheel; a looser pin pulls CUDA builds
+	$(BIN)/pip install -q -e ".[dev]"
+	touch $@
+
+params: setup ## write params.yaml from conf/
+	$(BIN)/python scripts/compose_params.py
+
+check-params: setup ## fail when params.yaml is stale
+	$(BIN)/python scripts/compose_params.py --check
+
+bench-capture: setup ## capture of kitchen_small: wall time, peak memory, no-op dvc repro
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/bench_capture.py
+
+bench-video: setup ## video source on a rendered + encoded kitchen_small: registration and pose error
+	$(BIN)/python scripts/bench_video_sfm.py
+
+clean: ## remove generated outputs (DVC's cache keeps them)
+	rm -rf out multirun outputs

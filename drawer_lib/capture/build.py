@@ -1,0 +1,40 @@
+"""The ``capture`` stage's work: dispatch on the scene's source, write the standard layout."""
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from drawer_lib.capture.config import CaptureConfig, SceneConfig
+from drawer_lib.capture.dirsource import import_dir_capture
+from drawer_lib.io.manifest import Manifest, write_manifest
+
+# Every capture folder has these sub-folders (possibly empty: manifest.json says what exists),
+# so the DVC stage can declare each one as its own output and later stages depend only on the
+# modalities they read.
+CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
+
+
+def build_capture(scene: str, cfg: SceneConfig, cap: CaptureConfig, out: Path, rng: np.random.Generator,
+                  root: Path, progress: Callable = lambda it, **kw: it) -> tuple[Manifest, dict]:
+    """Write the capture of ``scene`` into the empty folder ``out``; return (manifest, metrics).
+
+    ``root`` is the project root that input paths of ``video`` / ``dir`` scenes are relative to.
+    Raises CaptureError / ConfigError (naming the file, frame or key) on bad input.
+    """
+    for d in CAPTURE_DIRS:
+        (out / d).mkdir(parents=True, exist_ok=True)
+    test_every = cap.split.test_every
+    if cfg.source == "synth":
+        from drawer_lib.synth.capture import Sensors, render_synth_capture
+
+        sensors = Sensors(cap.depth, cap.mono, cap.detections, cap.render)
+        manifest, metrics = render_synth_capture(scene, cfg.synth, sensors, test_every, out, rng, progress)
+    elif cfg.source == "video":
+        from drawer_lib.capture.videosource import import_video_capture
+
+        manifest, metrics = import_video_capture(scene, cfg.video, cap.video, test_every, out, root, progress)
+    else:
+        manifest, metrics = import_dir_capture(scene, cfg.dir, test_every, out, root, progress)
+    write_manifest(out / "manifest.json", manifest)
+    return manifest, metrics

@@ -1,0 +1,140 @@
+"""Camera conventions and pure camera ops (numpy). See :mod:`drawer_lib.geometry` for conventions."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from jaxtyping import Float
+
+# diag(1, -1, -1) flips the y and z camera axes: OpenGL (y up, z back) <-> OpenCV (y down, z fwd).
+_GL_CV_FLIP = np.diag([1.0, -1.0, -1.0, 1.0])
+
+
+def opengl_to_opencv(c2w_gl: Float[np.ndarray, "*B 4 4"]) -> Float[np.ndarray, "*B 4 4"]:
+    """Camera-to-world in the OpenGL convention -> camera-to-world in the OpenCV convention.
+
+    >>> import numpy as np
+    >>> opengl_to_opencv(np.eye(4))[:3, :3].diagonal().tolist()
+    [1.0, -1.0, -1.0]
+    """
+    return c2w_gl @ _GL_CV_FLIP
+
+
+def opencv_to_opengl(c2w_cv: Float[np.ndarray, "*B 4 4"]) -> Float[np.ndarray, "*B 4 4"]:
+    """Inverse of :func:`opengl_to_opencv` (the flip is its own inverse)."""
+    return c2w_cv @ _GL_CV_FLIP
+
+
+def invert_rigid(T: Float[np.ndarray, "*B 4 4"]) -> Float[np.ndarray, "*B 4 4"]:
+    """Inverse of rigid transforms [R t; 0 1] -> [R^T -R^T t; 0 1] (exact, no matrix inverse)."""
+    R = T[..., :3, :3]
+    t = T[..., :3, 3:]
+    out = np.zeros_like(T)
+    Rt = np.swapaxes(R, -1, -2)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3:] = -Rt @ t
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def check_rigid(T: np.ndarray, tol: float = 1e-4) -> str | None:
+    """Return why ``T`` is not a finite rigid 4x4 transform, or None when it is.
+
+    Checks shape, finiteness, the last row (0, 0, 0, 1), R^T R = I and det R = +1 within ``tol``.
+    """
+    T = np.asarray(T)
+    if T.shape != (4, 4):
+        return f"shape {T.shape} is not (4, 4)"
+    if not np.all(np.isfinite(T)):
+        return "has non-finite entries"
+    if np.abs(T[3] - np.array([0.0, 0.0, 0.0, 1.0])).max() > tol:
+        return f"last row {T[3].tolist()} is not [0, 0, 0, 1]"
+    R = T[:3, :3].astype(np.float64)
+    ortho = np.abs(R.T @ R - np.eye(3)).max()
+    if ortho > tol:
+        return f"rotation block is not orthonormal (max |R^T R - I| = {ortho:.3g})"
+    det = float(np.linalg.det(R))
+    if det < 0:
+        return f"rotation block is a reflection (det = {det:.3g})"
+    return None
+
+
+def look_at_opencv(
+    eye: Float[np.ndarray, "3"], target: Float[np.ndarray, "3"], up: Float[np.ndarray, "3"]
+) -> Float[np.ndarray, "4 4"]:
+    """OpenCV camera-to-world looking from ``eye`` at ``target`` with image-up close to ``up``.
+
+    Raises ValueError when the viewing direction is (anti)parallel to ``up`` or has zero length.
+    """
+    fwd = np.asarray(target, np.float64) - np.asarray(eye, np.float64)
+    n = np.linalg.norm(fwd)
+    if n < 1e-12:
+        raise ValueError("look_at: eye and target coincide")
+    z = fwd / n
+    x = np.cross(z, np.asarray(up, np.float64))  # right = forward x up; then y = forward x right (down)
+    nx = np.linalg.norm(x)
+    if nx < 1e-9:
+        raise ValueError("look_at: viewing direction is parallel to up")
+    x /= nx
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, z, eye
+    return T
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics in the nerfstudio/COLMAP pixel convention (pixel centres at +0.5).
+
+    ``dist`` holds OpenCV distortion (k1, k2, p1, p2); all zeros for PINHOLE.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    dist: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+
+    @property
+    def has_distortion(self) -> bool:
+        return any(abs(d) > 0 for d in self.dist)
+
+    def K(self) -> Float[np.ndarray, "3 3"]:
+        """K in this convention: u = fx x/z + cx addresses the continuous image plane."""
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
+
+    def K_opencv(self) -> Float[np.ndarray, "3 3"]:
+        """K for the OpenCV convention (centre of the top-left pixel at (0, 0)): c - 0.5."""
+        K = self.K()
+        K[0, 2] -= 0.5
+        K[1, 2] -= 0.5
+        return K
+
+    def scaled(self, s: float) -> "Intrinsics":
+        """Intrinsics of the image resized by ``s`` (exact for this pixel convention)."""
+        return Intrinsics(
+            self.fx * s, self.fy * s, self.cx * s, self.cy * s,
+            int(round(self.width * s)), int(round(self.height * s)), self.dist,
+        )
+
+    @staticmethod
+    def from_fovy(fovy_rad: float, width: int, height: int) -> "Intrinsics":
+        """Square pixels, centred principal point, vertical field of view ``fovy_rad``."""
+        f = 0.5 * height / np.tan(0.5 * fovy_rad)
+        return Intrinsics(float(f), float(f), width / 2.0, height / 2.0, width, height)
+
+
+def project_points(
+    points: Float[np.ndarray, "N 3"], w2c: Float[np.ndarray, "4 4"], intr: Intrinsics
+) -> tuple[Float[np.ndarray, "N 2"], Float[np.ndarray, "N"]]:
+    """Project world points to continuous pixel coordinates (this module's convention).
+
+    Returns (uv [N, 2], z [N]); z <= 0 means behind the camera (uv is then meaningless).
+    Distortion is ignored (PINHOLE).
+    """
+    pc = points @ w2c[:3, :3].T + w2c[:3, 3]
+    z = pc[:, 2]
+    zs = np.where(np.abs(z) < 1e-12, 1e-12, z)
+    uv = np.stack([intr.fx * pc[:, 0] / zs + intr.cx, intr.fy * pc[:, 1] / zs + intr.cy], axis=-1)
+    return uv, z

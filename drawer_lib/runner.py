@@ -1,0 +1,177 @@
+"""The stage runner every DVC stage uses.
+
+``with stage_run("capture", out_dir, seed=cfg.seed) as run:`` gives a fresh temporary directory
+``run.dir`` to write into, a seeded ``run.rng``, progress bars, a ``curve.csv`` helper and a
+``metrics`` dict. On success it adds ``wall_s`` and ``peak_rss_mb``, refuses non-finite metrics,
+writes ``metrics.json`` and swaps the temporary directory into place in one rename; on any error
+the temporary directory is removed and the previous output is left untouched, so an interrupted
+stage never leaves anything DVC could mistake for a result.
+
+``main_guard`` wraps a stage's main so that bad input (:class:`drawer_lib.errors.InputError`)
+ends with a one-line message naming the file or value and exit code 2.
+"""
+
+import csv
+import functools
+import math
+import random
+import resource
+import shutil
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.io.images import write_json
+from drawer_lib.io.manifest import Manifest
+
+EXIT_BAD_INPUT = 2
+
+
+def seed_everything(seed: int) -> np.random.Generator:
+    """Seed Python, NumPy's legacy global state and torch (when imported); return a Generator."""
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    if "torch" in sys.modules:
+        sys.modules["torch"].manual_seed(seed)
+    return np.random.default_rng(seed)
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process and of its waited-for children, in MiB."""
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return max(own, kids) / 1024.0  # ru_maxrss is in KiB on Linux
+
+
+class Curve:
+    """Append-only ``curve.csv`` (``step, wall_s, <columns>``), flushed row by row."""
+
+    def __init__(self, path: Path, columns: list[str], t0: float):
+        self.path, self.columns, self._t0 = path, ["step", "wall_s", *columns], t0
+        self._f = open(path, "w", newline="")
+        self._w = csv.writer(self._f)
+        self._w.writerow(self.columns)
+        self._f.flush()
+
+    def log(self, step: int, **values: float) -> None:
+        unknown = set(values) - set(self.columns)
+        if unknown:
+            raise KeyError(f"curve {self.path.name}: unknown columns {sorted(unknown)}")
+        for k, v in values.items():
+            if v is not None and not math.isfinite(v):
+                raise NonFiniteError(f"curve {self.path.name}: {k} = {v} at step {step}")
+        row = [step, f"{time.perf_counter() - self._t0:.4f}"]
+        row += ["" if values.get(c) is None else f"{values[c]:.6g}" for c in self.columns[2:]]
+        self._w.writerow(row)
+        self._f.flush()
+
+    def close(self) -> None:
+        if not self._f.closed:
+            self._f.close()
+
+
+class StageRun:
+    """State of one stage run; see the module doc."""
+
+    def __init__(self, stage: str, out_dir: Path, tmp_dir: Path, seed: int):
+        self.stage, self.out_dir, self.dir, self.seed = stage, out_dir, tmp_dir, seed
+        self.rng = seed_everything(seed)
+        self.metrics: dict = {}
+        self.skipped: dict[str, str] = {}
+        self.t0 = time.perf_counter()
+        self._curves: list[Curve] = []
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def progress(self, iterable: Iterable | None = None, **kw) -> tqdm:
+        """A tqdm bar labelled with the stage name (pass ``desc`` to refine it)."""
+        desc = f"{self.stage}: {kw.pop('desc')}" if "desc" in kw else self.stage
+        return tqdm(iterable, desc=desc, dynamic_ncols=True, mininterval=0.5, **kw)
+
+    def curve(self, columns: list[str], name: str = "curve.csv") -> Curve:
+        c = Curve(self.dir / name, columns, self.t0)
+        self._curves.append(c)
+        return c
+
+    def skip(self, name: str, reason: str) -> None:
+        """Record that ``name`` (a metric or a piece of work) was skipped, and why."""
+        self.skipped[name] = reason
+        print(f"[{self.stage}] skip {name}: {reason}", file=sys.stderr)
+
+    def needs(self, manifest: Manifest, name: str, *requirements: str) -> bool:
+        """True when the manifest meets every requirement; else record the skip of ``name``."""
+        why = manifest.first_missing(*requirements)
+        if why:
+            self.skip(name, why)
+            return False
+        return True
+
+    def _finish(self) -> dict:
+        for c in self._curves:
+            c.close()
+        m = dict(self.metrics)
+        for k, v in m.items():
+            if isinstance(v, float) and not math.isfinite(v):
+                raise NonFiniteError(f"{self.stage}: metric {k} = {v}")
+        m["wall_s"] = round(self.elapsed(), 4)
+        m["peak_rss_mb"] = round(peak_rss_mb(), 1)
+        if self.skipped:
+            m["skipped"] = dict(self.skipped)
+        write_json(self.dir / "metrics.json", m)
+        return m
+
+
+def _remove(p: Path) -> None:
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p)
+    elif p.exists() or p.is_symlink():
+        p.unlink()
+
+
+@contextmanager
+def stage_run(stage: str, out_dir: Path, seed: int) -> Iterator[StageRun]:
+    """Run a stage into a temporary sibling of ``out_dir`` and swap it in on success."""
+    out_dir = Path(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_dir.parent / f".{out_dir.name}.tmp"
+    old = out_dir.parent / f".{out_dir.name}.old"
+    for stale in (tmp, old):
+        _remove(stale)
+    tmp.mkdir()
+    run = StageRun(stage, out_dir, tmp, seed)
+    try:
+        yield run
+        metrics = run._finish()
+    except BaseException:
+        for c in run._curves:
+            c.close()
+        _remove(tmp)
+        raise
+    if out_dir.exists() or out_dir.is_symlink():
+        out_dir.rename(old)
+    tmp.rename(out_dir)
+    _remove(old)
+    print(f"[{stage}] done in {metrics['wall_s']:.1f} s, peak {metrics['peak_rss_mb']:.0f} MiB -> {out_dir}",
+          file=sys.stderr)
+
+
+def main_guard(fn: Callable) -> Callable:
+    """Decorator for stage mains: InputError -> ``error: <message>`` on stderr and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapped(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except InputError as e:
+            print(f"error: {e}", file=sys.stderr)
+            sys.stderr.flush()
+            sys.exit(EXIT_BAD_INPUT)
+
+    return wrapped
