@@ -9,7 +9,8 @@ from pathlib import Path
 # Must run before drawer_lib is imported.
 from jaxtyping import install_import_hook
 
-install_import_hook("drawer_lib", "beartype.beartype")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+install_import_hook("drawer_lib", "typecheck.typechecker")
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ["DVC_NO_ANALYTICS"] = "1"
@@ -20,7 +21,6 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
 
 
 @pytest.fixture(scope="session")

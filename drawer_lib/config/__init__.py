@@ -1,0 +1,1 @@
+"""Typed configs at the stage boundary, params.yaml composition, stage helpers."""

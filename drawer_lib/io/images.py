@@ -82,7 +82,7 @@ def write_depth(path: Path, depth_m: np.ndarray, unit_scale: float) -> None:
     write_u16(path, q)
 
 
-def read_npy(path: Path, dtype: np.dtype, shape: tuple[int, ...]) -> np.ndarray:
+def read_npy(path: Path, dtype: type, shape: tuple[int, ...]) -> np.ndarray:
     """Load an .npy file and check dtype and shape (``-1`` in ``shape`` matches any size)."""
     path = Path(path)
     if not path.is_file():

@@ -1,0 +1,1 @@
+"""Video -> posed frames: frame reading and selection, pycolmap SfM, similarity alignment."""

@@ -1,0 +1,1 @@
+"""Procedural kitchens: layout, MuJoCo model (MjSpec), rendering, simulated sensors, ground truth."""

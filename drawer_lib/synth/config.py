@@ -65,7 +65,7 @@ class LayoutConfig:
         for s in self.handle_styles:
             _check(s in HANDLE_STYLES, f"layout.handle_styles: unknown style {s!r} (known: {HANDLE_STYLES})")
         _check(bool(self.handle_styles), "layout.handle_styles is empty")
-        _check(all(0.25 <= w <= 1.0 for w in self.module_widths) and self.module_widths,
+        _check(bool(self.module_widths) and all(0.25 <= w <= 1.0 for w in self.module_widths),
                f"layout.module_widths {self.module_widths} must be in [0.25, 1.0] m")
         _check(0 < self.front_gap < 0.02, f"layout.front_gap = {self.front_gap} must be in (0, 0.02) m")
         _check(self.wall_bottom > self.plinth_height + self.carcass_height + self.counter_thickness + 0.3,

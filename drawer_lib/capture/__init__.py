@@ -1,0 +1,1 @@
+"""The capture stage: scene and capture configs, the three sources (synth, video, dir)."""

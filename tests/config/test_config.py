@@ -1,0 +1,122 @@
+"""Configs: params.yaml is the composition of conf/, every config converts to the typed
+dataclasses without missing or unknown keys, the DVC primary config equals the interactive one,
+and dvc.yaml declares params that exist."""
+
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+import yaml
+from helpers import CONF, ROOT, compose_cfg
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from drawer_lib.capture.config import CaptureConfig, SceneConfig
+from drawer_lib.config.compose import compose_params, params_diff
+from drawer_lib.config.typed import to_tree, to_typed
+from drawer_lib.errors import ConfigError
+
+SCENES = sorted(p.stem for p in (CONF / "scene").glob("*.yaml"))
+VARIANTS = {g: sorted(p.stem for p in (CONF / "capture" / g).glob("*.yaml")) for g in ("depth", "mono", "detections")}
+
+
+def test_params_yaml_in_sync_with_conf():
+    diff = params_diff(CONF, ROOT / "params.yaml")
+    assert diff == "", "params.yaml is stale: run `python scripts/compose_params.py`\n" + diff
+
+
+def test_compose_matches_dvc_composition(tmp_path):
+    """Our compose is byte-identical to DVC's own (dvc.utils.hydra.compose_and_dump)."""
+    from dvc.utils.hydra import compose_and_dump
+
+    compose_and_dump(tmp_path / "params.yaml", str(CONF), None, "config", str(tmp_path), [])
+    assert (tmp_path / "params.yaml").read_text() == compose_params(CONF)
+    compose_and_dump(tmp_path / "p2.yaml", str(CONF), None, "config", str(tmp_path), ["capture/detections=perfect"])
+    assert (tmp_path / "p2.yaml").read_text() == compose_params(CONF, ["capture/detections=perfect"])
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_every_scene_converts_strictly(scene):
+    cfg = compose_cfg([f"scene={scene}"])
+    sc = to_typed(SceneConfig, cfg.scene, f"conf/scene/{scene}.yaml:")
+    assert sc.source in ("synth", "video", "dir")
+    # the YAML sets every field: converting the dataclass back gives the same tree
+    assert to_tree(sc) == OmegaConf.to_container(cfg.scene)
+
+
+@pytest.mark.parametrize("combo", list(itertools.product(*VARIANTS.values())))
+def test_every_capture_variant_converts_strictly(combo):
+    ov = [f"capture/{g}={v}" for g, v in zip(VARIANTS, combo)]
+    cfg = compose_cfg(ov)
+    cap = to_typed(CaptureConfig, cfg.capture, "capture")
+    assert to_tree(cap) == OmegaConf.to_container(cfg.capture)
+
+
+@pytest.mark.parametrize("scene", ["kitchen_small", "kitchen_tiny"])
+def test_dvc_stage_config_equals_interactive_config(scene, monkeypatch):
+    monkeypatch.chdir(ROOT)  # dvc_stage finds params.yaml in the stage's working directory
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        a = compose(config_name="config", overrides=[f"scene={scene}"])
+        b = compose(config_name="dvc_stage", overrides=[f"scene={scene}"])
+    assert OmegaConf.to_container(a, resolve=True) == OmegaConf.to_container(b, resolve=True)
+
+
+def test_dvc_yaml_params_exist():
+    dvc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    for name, st in dvc["stages"].items():
+        body = st.get("do", st)
+        for p in body.get("params", []):
+            if isinstance(p, dict):
+                (path,) = p
+                assert "${item}" in path or (ROOT / path).exists()
+                continue
+            node = params
+            for k in p.split("."):
+                assert k in node, f"stage {name}: params key {p!r} is not in params.yaml"
+                node = node[k]
+
+
+@dataclass(frozen=True)
+class Inner:
+    a: int = 1
+    b: list[float] = field(default_factory=lambda: [1.0])
+
+
+@dataclass(frozen=True)
+class Outer:
+    name: str = "x"
+    inner: Inner | None = None
+    flag: bool = False
+
+
+def test_to_typed_errors_name_the_key():
+    ok = to_typed(Outer, {"name": "n", "inner": {"a": 2, "b": [1, 2.5]}, "flag": True}, "f.yaml:")
+    assert ok.inner.b == [1.0, 2.5] and isinstance(ok.inner.b[0], float)
+    cases = [
+        ({"name": "n", "inner": {"a": 2, "b": [], "c": 1}, "flag": True}, "f.yaml:inner: unknown key(s) ['c']"),
+        ({"name": "n", "inner": {"a": 2}, "flag": True}, "f.yaml:inner: missing key(s) ['b']"),
+        ({"name": "n", "inner": {"a": "two", "b": []}, "flag": True}, "f.yaml:inner.a: expected an integer"),
+        ({"name": "n", "inner": None, "flag": "yes"}, "f.yaml:flag: expected true or false"),
+        ({"name": "n", "inner": {"a": 1, "b": ["x"]}, "flag": True}, "f.yaml:inner.b[0]: expected a number"),
+    ]
+    for tree, msg in cases:
+        with pytest.raises(ConfigError) as e:
+            to_typed(Outer, tree, "f.yaml:")
+        assert msg in str(e.value), str(e.value)
+    assert to_typed(Outer, {"name": "n"}, "f.yaml:", strict=False).inner is None
+
+
+def test_scene_source_must_have_its_block():
+    with pytest.raises(ConfigError, match="'video' block is null"):
+        SceneConfig(source="video")
+    with pytest.raises(ConfigError, match="not one of"):
+        SceneConfig(source="lidar")
+
+
+def test_conf_files_are_plain_yaml():
+    """DVC loads conf/scene/<name>.yaml as a params file: no interpolation, no defaults list."""
+    for p in Path(CONF / "scene").glob("*.yaml"):
+        text = p.read_text()
+        assert "${" not in text and "defaults:" not in text, p

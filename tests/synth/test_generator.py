@@ -1,0 +1,210 @@
+"""The procedural kitchens: ground truth agrees with the compiled MuJoCo model, rendering agrees
+with the GT mesh, layouts are sane, and seeds reproduce."""
+
+import dataclasses
+import filecmp
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+
+from drawer_lib.geometry.camera import Intrinsics, invert_rigid, look_at_opencv, opencv_to_opengl
+from drawer_lib.geometry.joints import apply_transform, joint_transform
+from drawer_lib.geometry.raycast import Raycaster
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.parts import read_parts
+from drawer_lib.synth.config import SynthConfig
+from drawer_lib.synth.gt import layout_mesh, layout_parts
+from drawer_lib.synth.layout import OUT, sample_layout
+from drawer_lib.synth.model import KitchenRenderer, build_model
+
+SEEDS = [0, 1, 5]
+
+
+@pytest.fixture(scope="module", params=SEEDS)
+def kitchen(request):
+    cfg = SynthConfig(seed=request.param)
+    layout = sample_layout(cfg)
+    cam = Intrinsics.from_fovy(np.deg2rad(60), 64, 48)
+    return layout, build_model(layout, cam), layout_parts(layout)
+
+
+def _joint_of(km, name):
+    jid = mujoco.mj_name2id(km.model, mujoco.mjtObj.mjOBJ_JOINT, f"{name}/joint")
+    assert jid >= 0, name
+    return jid
+
+
+def test_gt_joints_agree_with_compiled_model(kitchen):
+    layout, km, parts = kitchen
+    m, d = km.model, mujoco.MjData(km.model)
+    mujoco.mj_forward(m, d)
+    articulated = [p for p in parts.parts if p.articulated]
+    assert len(articulated) >= 4
+    for p in articulated:
+        jid = _joint_of(km, p.id)
+        want_type = mujoco.mjtJoint.mjJNT_HINGE if p.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE
+        assert m.jnt_type[jid] == want_type, p.id
+        np.testing.assert_allclose(d.xaxis[jid], p.axis.direction, atol=1e-9, err_msg=p.id)
+        np.testing.assert_allclose(m.jnt_range[jid], p.limits, atol=1e-9, err_msg=p.id)
+        assert m.jnt_limited[jid]
+        if p.kind == "revolute":  # the model's anchor lies on the GT hinge line
+            r = d.xanchor[jid] - np.asarray(p.axis.origin)
+            off = r - (r @ np.asarray(p.axis.direction)) * np.asarray(p.axis.direction)
+            assert np.linalg.norm(off) < 1e-9, p.id
+        assert p.limits[0] == 0.0 and p.limits[1] > 0.1, p.id
+
+
+def test_gt_joint_moves_front_as_parts_json_says(kitchen):
+    layout, km, parts = kitchen
+    m, d = km.model, mujoco.MjData(km.model)
+    for p in (p for p in parts.parts if p.articulated):
+        jid = _joint_of(km, p.id)
+        bid = m.jnt_bodyid[jid]
+        d.qpos[:] = 0
+        mujoco.mj_kinematics(m, d)
+        T0 = np.eye(4)
+        T0[:3, :3], T0[:3, 3] = d.xmat[bid].reshape(3, 3), d.xpos[bid]
+        corners = p.front.corners()
+        local = apply_transform(invert_rigid(T0), corners)
+        for frac in (0.3, 1.0):
+            q = frac * p.limits[1]
+            d.qpos[m.jnt_qposadr[jid]] = q
+            mujoco.mj_kinematics(m, d)
+            Tq = np.eye(4)
+            Tq[:3, :3], Tq[:3, 3] = d.xmat[bid].reshape(3, 3), d.xpos[bid]
+            moved_model = apply_transform(Tq, local)
+            moved_gt = apply_transform(joint_transform(p.kind, np.asarray(p.axis.origin), np.asarray(p.axis.direction), q), corners)
+            np.testing.assert_allclose(moved_model, moved_gt, atol=1e-7, err_msg=f"{p.id} at q={q}")
+            # positive q opens: nothing goes behind the closed front's plane into the cabinet
+            n, c = np.asarray(p.front.normal), np.asarray(p.front.center)
+            assert ((moved_gt - c) @ n).min() > -1e-9, p.id
+            if p.extra["family"] in ("drawer",):
+                np.testing.assert_allclose(moved_gt - corners, np.tile(q * n, (4, 1)), atol=1e-9)
+            if p.extra["family"] == "sliding":  # slides within its own plane
+                assert np.abs((moved_gt - corners) @ n).max() < 1e-9
+            if p.kind == "revolute":  # the free edge swings out by about width * sin(q)
+                assert ((moved_gt - c) @ n).max() > 0.5 * min(p.front.size) * np.sin(min(q, np.pi / 2))
+
+
+def test_layout_fronts_are_sane(kitchen):
+    layout, _, parts = kitchen
+    fronts = [p.front for p in parts.parts if p.articulated] + [b.front for b in parts.ignore_boxes]
+    for f in fronts:
+        np.testing.assert_allclose(f.normal, OUT)
+        assert min(f.size) > 0.05
+    # fronts in one plane never overlap (they are separated by the front gap)
+    for i, a in enumerate(fronts):
+        for b in fronts[i + 1:]:
+            if abs(a.center[1] - b.center[1]) > 1e-6:
+                continue
+            ox = min(a.center[0] + a.size[0] / 2, b.center[0] + b.size[0] / 2) - max(a.center[0] - a.size[0] / 2, b.center[0] - b.size[0] / 2)
+            oz = min(a.center[2] + a.size[1] / 2, b.center[2] + b.size[1] / 2) - max(a.center[2] - a.size[1] / 2, b.center[2] - b.size[1] / 2)
+            assert min(ox, oz) < 1e-9
+    # each ignore box contains its fixed front
+    for b in parts.ignore_boxes:
+        assert all(b.contains(c) for c in b.front.corners())
+    ids = [p.instance_id for p in parts.parts] + [b.instance_id for b in parts.ignore_boxes]
+    assert len(ids) == len(set(ids)) and 0 not in ids
+    # handles stand proud of their front, inside its rectangle's extent
+    for e in layout.parts():
+        if e.front is None:
+            continue
+        hv = np.concatenate([p.mesh.verts for p in e.pieces if p.role == "handle"])
+        proud = (hv - np.asarray(e.front.center)) @ OUT
+        assert proud.max() > 0.008, e.name
+
+
+def test_required_types_and_kinds_present():
+    layout = sample_layout(SynthConfig(seed=0))
+    fams = {e.family for e in layout.parts()}
+    assert {"drawer", "door", "flap", "sliding"} <= fams
+    hinges = {e.hinge for e in layout.parts() if e.joint == "hinge"}
+    assert {"left", "right", "top"} <= hinges
+
+
+def test_pieces_are_closed_outward_shells():
+    layout = sample_layout(SynthConfig(seed=3))
+    for e in layout.entities:
+        for p in e.pieces:
+            tm = trimesh.Trimesh(p.mesh.verts, p.mesh.faces, process=True)
+            assert tm.is_watertight, (e.name, p.material)
+            assert p.mesh.volume() > 0, (e.name, p.material)
+            assert np.all(np.isfinite(p.mesh.uv))
+
+
+def test_rendered_depth_agrees_with_gt_mesh_raycast():
+    layout = sample_layout(SynthConfig(seed=0))
+    intr = Intrinsics.from_fovy(np.deg2rad(62), 160, 120)
+    km = build_model(layout, intr)
+    mesh, _ = layout_mesh(layout)
+    rc = Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    r = KitchenRenderer(km, intr)
+    errs = []
+    try:
+        for eye, tgt in [([1.0, -2.4, 1.4], [1.2, 0, 0.9]), ([0.2, -1.6, 1.1], [1.5, 0, 0.5]), ([2.2, -1.8, 1.7], [1.0, 0, 1.6])]:
+            c2w = look_at_opencv(np.array(eye), np.array(tgt), np.array([0, 0, 1.0]))
+            r.set_camera(opencv_to_opengl(c2w))
+            _, z, ent, _ = r.render()
+            z_rc, _, fid = rc.depth_normals(intr, invert_rigid(c2w))
+            ok = (fid >= 0) & (z > 0)
+            assert ok.mean() > 0.99  # the room is closed: every ray hits something
+            errs.append(np.abs(z[ok] - z_rc[ok]))
+            assert np.all(ent >= 0)
+    finally:
+        r.close()
+    e = np.concatenate(errs)
+    assert np.median(e) <= 1e-3, np.median(e)
+    assert np.mean(e < 5e-3) > 0.97  # only silhouette pixels may disagree by more
+
+
+def test_capture_depth_png_agrees_with_gt_mesh(exact_capture):
+    out, _, _ = exact_capture
+    cap = load_capture(out)
+    mesh = trimesh.load(out / "gt" / "mesh.ply", process=False)
+    rc = Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    errs = []
+    for i in range(0, len(cap.frames), 3):
+        z = cap.depth(i)
+        z_rc, _, fid = rc.depth_normals(cap.intrinsics, cap.frames[i].w2c)
+        ok = (z > 0) & (fid >= 0)
+        errs.append(np.abs(z[ok] - z_rc[ok]))
+    assert np.median(np.concatenate(errs)) <= 1e-3
+
+
+def test_gt_instances_match_parts(exact_capture):
+    out, manifest, _ = exact_capture
+    parts = read_parts(out / "gt" / "parts.json")
+    known = {p.instance_id for p in parts.parts} | {b.instance_id for b in parts.ignore_boxes}
+    cap = load_capture(out)
+    seen = set()
+    for f in cap.frames:
+        from drawer_lib.io.images import read_u16
+
+        seen |= set(np.unique(read_u16(out / "gt" / "instances" / f"{f.stem}.png")).tolist())
+    assert seen - {0} <= known
+    assert len(seen - {0}) >= 3
+    assert manifest.gt_part_kinds == parts.kinds()
+
+
+def test_same_seed_same_kitchen_and_capture(tmp_path, tiny_scene, exact_capture):
+    from helpers import render_capture, sensor_cfg
+
+    a = sample_layout(tiny_scene.synth)
+    b = sample_layout(tiny_scene.synth)
+    assert layout_parts(a).to_json() == layout_parts(b).to_json()
+    np.testing.assert_array_equal(layout_mesh(a)[0].vertices, layout_mesh(b)[0].vertices)
+    other = sample_layout(dataclasses.replace(tiny_scene.synth, seed=tiny_scene.synth.seed + 1))
+    assert layout_parts(other).to_json() != layout_parts(a).to_json()
+
+    out1, _, _ = exact_capture
+    out2 = tmp_path / "again"
+    render_capture(tiny_scene, sensor_cfg(depth="exact", mono="exact", detections="perfect"), out2)
+    cmp = filecmp.dircmp(out1, out2)
+    for sub in ("images", "depth", "detections", "mono_depth"):
+        names = sorted(p.name for p in (out1 / sub).iterdir())
+        match, mismatch, errors = filecmp.cmpfiles(out1 / sub, out2 / sub, names, shallow=False)
+        assert not mismatch and not errors, (sub, mismatch)
+    assert (out1 / "transforms.json").read_text() == (out2 / "transforms.json").read_text()
+    assert not cmp.left_only and not cmp.right_only

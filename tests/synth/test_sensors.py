@@ -1,0 +1,203 @@
+"""Simulated sensors: statistics of the depth camera, monocular priors, detector noise; exact and
+perfect settings are exact; degenerate frames are handled."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+import trimesh
+
+from drawer_lib.geometry.raycast import Raycaster
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.images import read_u16
+from drawer_lib.synth.config import DepthSensorConfig, DetectionsConfig, MonoConfig
+from drawer_lib.synth.sensors import (
+    DetectableEntity,
+    depth_edges,
+    mono_depth,
+    mono_normals,
+    sensor_depth,
+    simulate_detections,
+)
+
+K = (50.0, 50.0, 32.0, 24.0)
+
+
+def plane(z0=2.0, H=48, W=64):
+    z = np.full((H, W), z0)
+    n = np.zeros((H, W, 3))
+    n[..., 2] = -1.0
+    return z, n
+
+
+def test_exact_depth_is_passthrough(rng):
+    z, n = plane()
+    z[0, 0] = 0.0
+    out = sensor_depth(z, n, K, DepthSensorConfig(exact=True), rng)
+    np.testing.assert_array_equal(out, z.astype(np.float32))
+
+
+def test_depth_noise_follows_the_axial_model(rng):
+    cfg = DepthSensorConfig(dropout=0.0)
+    for z0 in (1.0, 3.0):
+        z, n = plane(z0, 200, 200)
+        out = sensor_depth(z, n, (200.0, 200.0, 100.0, 100.0), cfg, rng)
+        ok = out > 0
+        assert ok.mean() > 0.99
+        want = cfg.sigma_base + cfg.sigma_quad * (z0 - cfg.z_ref) ** 2
+        assert np.std(out[ok] - z0) == pytest.approx(want, rel=0.1)
+        assert abs(np.mean(out[ok] - z0)) < 3 * want / np.sqrt(ok.sum())
+
+
+def test_depth_holes_at_grazing_angles_edges_and_range(rng):
+    cfg = DepthSensorConfig(dropout=0.0, sigma_base=0.0, sigma_quad=0.0)
+    H, W = 48, 64
+    z, n = plane(2.0, H, W)
+    # a strip seen edge-on: its normals are perpendicular to the viewing rays
+    j, i = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
+    d = np.stack([(j - K[2]) / K[0], (i - K[3]) / K[1], np.ones_like(j)], -1)
+    side = np.cross(d, [0.0, 1.0, 0.0])
+    n[:, :10] = (side / np.linalg.norm(side, axis=-1, keepdims=True))[:, :10]
+    z[:, 40:] = 3.0  # a depth step at column 40
+    z[:5] = 9.0  # beyond max range
+    out = sensor_depth(z, n, K, cfg, rng)
+    assert np.all(out[5:, :10] == 0)  # grazing
+    assert np.all(out[5:, 39:41] == 0)  # both sides of the step
+    assert np.all(out[:5] == 0)
+    assert np.all(out[10:, 15:35] == 2.0)
+    edges = depth_edges(z, 0.04)
+    assert edges[5:, 39:41].all() and not edges[10:, 15:35].any()
+
+
+def test_mono_depth_is_affine_in_depth_when_exact(rng):
+    z, _ = plane(2.0)
+    yy, xx = np.mgrid[0:48, 0:64]
+    z = z + 0.01 * xx + 0.02 * yy
+    z[3, 3] = 0.0  # a hole is filled, not propagated
+    m = mono_depth(z, MonoConfig(exact=True), rng)
+    assert m.dtype == np.float32 and m.min() == 0.0 and m.max() == pytest.approx(1.0)
+    ok = z > 0
+    A = np.stack([z[ok], np.ones(ok.sum())], 1)
+    coef, res, *_ = np.linalg.lstsq(A, m[ok], rcond=None)
+    assert np.abs(A @ coef - m[ok]).max() < 1e-5
+    noisy = mono_depth(z, MonoConfig(), rng)
+    assert np.corrcoef(noisy[ok], z[ok])[0, 1] > 0.95
+    with pytest.raises(ValueError, match="no valid depth"):
+        mono_depth(np.zeros((4, 4)), MonoConfig(), rng)
+    assert np.all(mono_depth(np.full((4, 4), 2.0), MonoConfig(exact=True), rng) == 0)  # flat: no NaN
+
+
+def test_mono_normals_unit_and_close(rng):
+    _, n = plane()
+    exact = mono_normals(n, MonoConfig(exact=True), rng).astype(np.float32)
+    np.testing.assert_allclose(exact, n, atol=1e-3)
+    noisy = mono_normals(n, MonoConfig(normal_noise_deg=4.0), rng).astype(np.float64)
+    np.testing.assert_allclose(np.linalg.norm(noisy, axis=-1), 1.0, atol=2e-3)
+    ang = np.rad2deg(np.arccos(np.clip(np.sum(noisy * n, -1), -1, 1)))
+    assert 0.3 < ang.mean() < 6.0
+
+
+def _scene():
+    """entity map with background, two touching fronts, an object, and a handle on front 1."""
+    ent = np.zeros((40, 60), np.int32)
+    ent[5:20, 5:25] = 1
+    ent[5:20, 25:45] = 2
+    ent[25:35, 10:20] = 3
+    handle = np.zeros_like(ent, bool)
+    handle[10:12, 8:22] = True
+    ents = [DetectableEntity("none", ""), DetectableEntity("front", "drawer"), DetectableEntity("front", "door"),
+            DetectableEntity("object", "cup")]
+    return ent, handle, ents
+
+
+def test_perfect_detections_are_the_visible_masks(rng):
+    ent, handle, ents = _scene()
+    cfg = DetectionsConfig(p_miss=0, p_merge=0, ragged_px=0, boundary_noise_px=0, false_rate=0, label_confusion=0,
+                           min_area_px=5)
+    assert cfg.perfect
+    lab, dets, st = simulate_detections(ent, handle, ents, cfg, rng)
+    by_label = {d["label"]: d["id"] for d in dets}
+    assert sorted(by_label) == ["cup", "door", "drawer", "handle"]
+    np.testing.assert_array_equal(lab == by_label["drawer"], (ent == 1) & ~handle)
+    np.testing.assert_array_equal(lab == by_label["handle"], handle)
+    np.testing.assert_array_equal(lab == by_label["cup"], ent == 3)
+    assert st.missed == st.merged == st.false == 0
+
+
+def test_noisy_detections_miss_merge_and_shuffle(rng):
+    ent, handle, ents = _scene()
+    cfg = DetectionsConfig(p_merge=1.0, p_miss=0.0, false_rate=0.0, min_area_px=5, labels="generic", detect_handles=False)
+    lab, dets, st = simulate_detections(ent, handle, ents, cfg, rng)
+    assert st.merged == 1 and {d["label"] for d in dets} == {"front", "object"}
+    assert len(dets) == 2  # the two touching fronts came out as one mask
+    ids = set()
+    for _ in range(20):  # ids are local to the frame: they change from frame to frame
+        lab, dets, _ = simulate_detections(ent, handle, ents, DetectionsConfig(min_area_px=5), rng)
+        ids.add(tuple(d["id"] for d in dets if d["label"] in ("drawer", "door")))
+        assert set(np.unique(lab).tolist()) - {0} == {d["id"] for d in dets}
+    assert len(ids) > 1
+    miss = simulate_detections(ent, handle, ents, DetectionsConfig(p_miss=1.0, false_rate=0.0), rng)
+    assert miss[1] == [] and not miss[0].any()
+
+
+def test_false_masks_land_on_static_surfaces(rng):
+    ent, handle, ents = _scene()
+    cfg = DetectionsConfig(p_miss=1.0, false_rate=5.0, min_area_px=5, ragged_px=0, boundary_noise_px=0)
+    hits = 0
+    for _ in range(10):
+        lab, dets, st = simulate_detections(ent, handle, ents, cfg, rng)
+        hits += st.false
+        assert all(d["score"] <= (cfg.score_range[0] + cfg.score_range[1]) / 2 for d in dets)
+    assert hits > 10
+
+
+def test_empty_frame_gives_no_detections(rng):
+    ent = np.full((20, 30), -1, np.int32)
+    lab, dets, _ = simulate_detections(ent, np.zeros_like(ent, bool), [DetectableEntity("none", "")],
+                                       DetectionsConfig(false_rate=0.0), rng)
+    assert dets == [] and lab.dtype == np.uint16 and not lab.any()
+
+
+def test_capture_sensors_against_ground_truth(noisy_capture, exact_capture):
+    """The noisy capture's depth is close to the GT surface, with holes; its detections are
+    ids local to frames that do not equal the GT instance ids."""
+    out, manifest, metrics = noisy_capture
+    cap = load_capture(out)
+    mesh = trimesh.load(out / "gt" / "mesh.ply", process=False)
+    rc = Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    valid, errs = [], []
+    for i in range(len(cap.frames)):
+        z = cap.depth(i)
+        z_rc, _, _ = rc.depth_normals(cap.intrinsics, cap.frames[i].w2c)
+        ok = z > 0
+        valid.append(ok.mean())
+        errs.append(np.abs(z[ok] - z_rc[ok]))
+    e = np.concatenate(errs)
+    assert 0.8 < np.mean(valid) < 0.995
+    assert 0.001 < np.median(e) < 0.02
+    assert metrics["depth_valid_fraction"] == pytest.approx(np.mean(valid), abs=1e-3)
+    assert manifest.has["detections"] and manifest.details["detections"]["perfect"] is False
+    gt_ids = set()
+    for i, f in enumerate(cap.frames):
+        gt_ids |= set(np.unique(read_u16(out / "gt" / "instances" / f"{f.stem}.png")).tolist())
+    lab, dets = cap.detections(0)
+    assert {d["label"] for d in dets} <= {"drawer", "door", "handle", "cup", "bottle", "kettle", "box", "object"}
+    exact_out, _, _ = exact_capture
+    ecap = load_capture(exact_out)
+    for i in range(len(ecap.frames)):
+        lab, dets = ecap.detections(i)
+        inst = read_u16(exact_out / "gt" / "instances" / f"{ecap.frames[i].stem}.png")
+        for d in dets:  # perfect masks lie inside exactly one GT instance
+            vals = np.unique(inst[lab == d["id"]])
+            assert len(vals) == 1 and vals[0] > 0
+
+
+def test_sensor_configs_reject_bad_values():
+    from drawer_lib.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="dropout"):
+        DepthSensorConfig(dropout=1.5)
+    with pytest.raises(ConfigError, match="labels"):
+        DetectionsConfig(labels="fancy")
+    with pytest.raises(ConfigError, match="p_miss"):
+        dataclasses.replace(DetectionsConfig(), p_miss=-0.1)

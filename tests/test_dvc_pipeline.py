@@ -1,0 +1,89 @@
+"""End to end through the dvc CLI in a temporary copy of the project: `dvc repro` builds the
+capture of a tiny scene, a second `dvc repro` does nothing, and stages compute from params.yaml
+(so `dvc exp run -S` changes what they compute)."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from helpers import ROOT
+
+pytestmark = pytest.mark.dvc
+
+IGNORE = shutil.ignore_patterns(".venv", "out", "multirun", "outputs", ".git", "cache", "tmp", "__pycache__",
+                                ".pytest_cache", ".hypothesis", "*.egg-info", "dvc.lock")
+
+
+@pytest.fixture(scope="module")
+def repo(tmp_path_factory):
+    d = tmp_path_factory.mktemp("repo") / "drawer"
+    shutil.copytree(ROOT, d, ignore=IGNORE)
+    home = d.parent / "home"
+    home.mkdir()
+    env = dict(os.environ)
+    for k in ("DVC_ROOT", "DVC_STAGE", "DVC_EXP_NAME"):
+        env.pop(k, None)
+    env.update({
+        "HOME": str(home), "GIT_CONFIG_GLOBAL": "/dev/null", "GIT_CONFIG_NOSYSTEM": "1",
+        "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t",
+        "DVC_SITE_CACHE_DIR": str(d.parent / "site_cache"), "DVC_NO_ANALYTICS": "1",
+        "PATH": f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}",
+        "PYTHONPATH": str(d),
+    })
+
+    def run(*cmd, check=True):
+        r = subprocess.run(cmd, cwd=d, env=env, capture_output=True, text=True, timeout=900)
+        if check and r.returncode != 0:
+            raise AssertionError(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}\n{r.stderr}")
+        return r
+
+    run(sys.executable, "scripts/compose_params.py", "scenes=[kitchen_tiny]")
+    run("git", "init", "-q", "-b", "main")
+    run("git", "add", "-A")
+    run("git", "commit", "-qm", "init")
+    return d, run
+
+
+def test_repro_builds_capture_then_does_nothing(repo):
+    d, run = repo
+    r = run("dvc", "repro")
+    cap = d / "out" / "kitchen_tiny" / "capture"
+    for sub in ("transforms.json", "manifest.json", "metrics.json", "images", "depth", "gt/parts.json", "gt/mesh.ply"):
+        assert (cap / sub).exists(), sub
+    m = json.loads((cap / "metrics.json").read_text())
+    assert m["n_frames"] == 12 and "wall_s" in m
+    stamp = (cap / "metrics.json").stat().st_mtime_ns
+    r = run("dvc", "repro")
+    assert "Data and pipelines are up to date." in r.stdout
+    assert "Running stage" not in r.stdout
+    assert (cap / "metrics.json").stat().st_mtime_ns == stamp
+    shown = json.loads(run("dvc", "metrics", "show", "--json").stdout)
+    assert any("n_frames" in json.dumps(v) for v in shown.values())
+
+
+def test_stage_reads_params_yaml(repo):
+    d, run = repo
+    run("dvc", "repro")
+    p = yaml.safe_load((d / "params.yaml").read_text())
+    p["capture"]["split"]["test_every"] = 3
+    (d / "params.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
+    st = run("dvc", "status").stdout
+    assert "capture@kitchen_tiny" in st and "modified:           capture" in st
+    run("dvc", "repro")
+    t = json.loads((d / "out" / "kitchen_tiny" / "capture" / "transforms.json").read_text())
+    assert len(t["test_filenames"]) == 4  # 12 frames, every 3rd
+    run("git", "checkout", "params.yaml")
+    run("dvc", "repro")  # back to the committed params (restored from the run cache)
+
+
+def test_exp_run_set_param_changes_the_result(repo):
+    d, run = repo
+    run("dvc", "exp", "run", "-S", "scenes=[kitchen_tiny]", "-S", "capture.split.test_every=6")
+    t = json.loads((d / "out" / "kitchen_tiny" / "capture" / "transforms.json").read_text())
+    assert len(t["test_filenames"]) == 2
+    assert "test_every: 6" in (d / "params.yaml").read_text()

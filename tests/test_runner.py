@@ -1,0 +1,76 @@
+import json
+import math
+
+import pytest
+
+from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.io.manifest import Manifest
+from drawer_lib.runner import main_guard, stage_run
+
+
+def test_outputs_appear_atomically_with_metrics(tmp_path):
+    out = tmp_path / "scene" / "stage"
+    with stage_run("stage", out, seed=3) as run:
+        (run.dir / "a.txt").write_text("x")
+        assert not out.exists()  # nothing visible before success
+        c = run.curve(["err"])
+        c.log(0, err=1.0)
+        c.log(10, err=0.5)
+        run.metrics["err"] = 0.5
+        run.skip("ea_score", "no revolute parts")
+        a = run.rng.random()
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["err"] == 0.5 and m["wall_s"] >= 0 and m["peak_rss_mb"] > 10
+    assert m["skipped"] == {"ea_score": "no revolute parts"}
+    rows = (out / "curve.csv").read_text().splitlines()
+    assert rows[0] == "step,wall_s,err" and rows[2].startswith("10,")
+    assert [p.name for p in out.parent.iterdir()] == ["stage"]  # no temporary left behind
+    with stage_run("stage", tmp_path / "other", seed=3) as run:
+        assert run.rng.random() == a  # seeded
+
+
+def test_failure_keeps_previous_output(tmp_path):
+    out = tmp_path / "s" / "stage"
+    with stage_run("stage", out, seed=0) as run:
+        (run.dir / "good.txt").write_text("good")
+    with pytest.raises(RuntimeError):
+        with stage_run("stage", out, seed=0) as run:
+            (run.dir / "partial.txt").write_text("half")
+            raise RuntimeError("boom")
+    assert (out / "good.txt").read_text() == "good" and not (out / "partial.txt").exists()
+    assert sorted(p.name for p in out.parent.iterdir()) == ["stage"]
+
+
+def test_non_finite_metric_is_an_error(tmp_path):
+    out = tmp_path / "s" / "stage"
+    with pytest.raises(NonFiniteError, match="psnr"):
+        with stage_run("stage", out, seed=0) as run:
+            run.metrics["psnr"] = math.nan
+    assert not out.exists()
+    with pytest.raises(NonFiniteError, match="loss"):
+        with stage_run("stage", out, seed=0) as run:
+            run.curve(["loss"]).log(1, loss=float("inf"))
+
+
+def test_needs_records_skips(tmp_path):
+    m = Manifest("s", "synth", 2, 1, 1, 4, 4,
+                 has={"rgb": True, "depth": False, "mono_depth": True, "mono_normal": True, "detections": True,
+                      "sparse_points": False, "gt": True},
+                 lacks={"depth": "disabled", "sparse_points": "synthetic"}, gt_part_kinds={"revolute": 0, "prismatic": 2, "rigid": 0})
+    with stage_run("evaluate", tmp_path / "e", seed=0) as run:
+        assert run.needs(m, "depth_loss", "depth") is False
+        assert run.needs(m, "ea_score", "gt", "gt:revolute") is False
+        assert run.needs(m, "recall", "gt") is True
+    sk = json.loads((tmp_path / "e" / "metrics.json").read_text())["skipped"]
+    assert sk == {"depth_loss": "capture has no depth: disabled", "ea_score": "ground truth has no revolute parts"}
+
+
+def test_main_guard_exit_code(capsys):
+    @main_guard
+    def bad():
+        raise InputError("transforms.json: frame 3 is broken")
+
+    with pytest.raises(SystemExit) as e:
+        bad()
+    assert e.value.code == 2
+    assert "error: transforms.json: frame 3 is broken" in capsys.readouterr().err
