@@ -1,6 +1,7 @@
 """Structure from motion with pycolmap: SIFT features, sequential or exhaustive matching,
 incremental mapping with one shared camera, undistortion to a pinhole camera."""
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -8,6 +9,8 @@ import numpy as np
 
 from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.sfm.config import VideoConfig
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -31,6 +34,15 @@ def reconstruct(image_dir: Path, names: list[str], work: Path, cfg: VideoConfig,
     """Run SfM on ``image_dir/<names>``; None when nothing could be reconstructed."""
     import pycolmap
 
+    level = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = 1  # COLMAP's INFO lines drown the stage's own progress
+    try:
+        return _reconstruct(pycolmap, image_dir, names, work, cfg, seed)
+    finally:
+        pycolmap.logging.minloglevel = level
+
+
+def _reconstruct(pycolmap, image_dir: Path, names: list[str], work: Path, cfg: VideoConfig, seed: int) -> SfMResult | None:
     work.mkdir(parents=True, exist_ok=True)
     db = work / "database.db"
     if db.exists():
@@ -42,8 +54,10 @@ def reconstruct(image_dir: Path, names: list[str], work: Path, cfg: VideoConfig,
     extract.sift.peak_threshold = cfg.sift_peak_threshold
     extract.num_threads = cfg.num_threads
     extract.use_gpu = False
+    log.info("SfM: SIFT features of %d frames", len(names))
     pycolmap.extract_features(db, image_dir, image_names=names, camera_mode=pycolmap.CameraMode.SINGLE,
                               reader_options=reader, extraction_options=extract, device=pycolmap.Device.cpu)
+    log.info("SfM: %s matching", cfg.matcher)
     match = pycolmap.FeatureMatchingOptions()
     match.num_threads = cfg.num_threads
     match.use_gpu = False
@@ -61,6 +75,7 @@ def reconstruct(image_dir: Path, names: list[str], work: Path, cfg: VideoConfig,
     opts.multiple_models = True
     sparse = work / "sparse"
     sparse.mkdir(exist_ok=True)
+    log.info("SfM: incremental mapping")
     recs = pycolmap.incremental_mapping(db, image_dir, sparse, options=opts)
     if not recs:
         return None
@@ -70,6 +85,7 @@ def reconstruct(image_dir: Path, names: list[str], work: Path, cfg: VideoConfig,
     model_dir.mkdir(exist_ok=True)
     best.write(model_dir)
 
+    log.info("SfM: %d/%d frames registered; undistorting", best.num_reg_images(), len(names))
     undist = work / "undistorted"
     pycolmap.undistort_images(undist, model_dir, image_dir)
     rec = pycolmap.Reconstruction(undist / "sparse")

@@ -10,9 +10,11 @@ Rendering uses ``mujoco.Renderer`` offscreen; the GL backend comes from ``MUJOCO
 default, osmesa as the fallback), which must be set before mujoco is imported.
 """
 
+import logging
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+logging.getLogger("OpenGL").setLevel(logging.WARNING)  # PyOpenGL announces optional accelerators
 
 from dataclasses import dataclass  # noqa: E402
 
