@@ -4,7 +4,6 @@ SHELL := /bin/bash
 PYTHON ?= python3.11
 VENV ?= .venv
 BIN := $(VENV)/bin
-export MUJOCO_GL ?= egl
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 

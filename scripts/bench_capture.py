@@ -33,7 +33,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1, help="capture runs per scene (the median is reported)")
     ap.add_argument("--noop", type=int, default=5, help="no-op `dvc repro` runs")
     a = ap.parse_args()
-    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    env = dict(os.environ)
     print(f"{'scene':<16} {'frames':>6} {'size':>9} {'stage wall s':>12} {'process s':>10} {'peak MiB':>9}")
     with tempfile.TemporaryDirectory(prefix="bench_capture_") as tmp:
         for scene in a.scenes:

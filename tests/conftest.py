@@ -12,7 +12,8 @@ from jaxtyping import install_import_hook
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 install_import_hook("drawer_lib", "typecheck.typechecker")
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import drawer_lib.synth.gl  # noqa: E402,F401  (picks MUJOCO_GL before any test imports mujoco)
+
 os.environ["DVC_NO_ANALYTICS"] = "1"
 for _k in ("DVC_ROOT", "DVC_STAGE", "DVC_EXP_NAME"):
     os.environ.pop(_k, None)

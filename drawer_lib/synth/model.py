@@ -6,17 +6,13 @@ GT axis origin, with a hinge or slide joint along the GT axis direction and the 
 rigid objects get a free joint. The model is for rendering and kinematics: geoms do not
 collide (the twin stage builds the simulation model from the reconstruction).
 
-Rendering uses ``mujoco.Renderer`` offscreen; the GL backend comes from ``MUJOCO_GL`` (egl by
-default, osmesa as the fallback), which must be set before mujoco is imported.
+Rendering uses ``mujoco.Renderer`` offscreen with the GL backend :mod:`drawer_lib.synth.gl`
+selects (``MUJOCO_GL``; EGL, else OSMesa).
 """
 
-import logging
-import os
+from dataclasses import dataclass
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-logging.getLogger("OpenGL").setLevel(logging.WARNING)  # PyOpenGL announces optional accelerators
-
-from dataclasses import dataclass  # noqa: E402
+from drawer_lib.synth import gl  # noqa: F401  (must precede the mujoco import)
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402

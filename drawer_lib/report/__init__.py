@@ -1,0 +1,1 @@
+"""Human-readable views of the pipeline's outputs (contact sheets, tables, dashboards)."""
