@@ -33,7 +33,8 @@ def build_capture(scene: str, cfg: SceneConfig, cap: CaptureConfig, out: Path, r
     elif cfg.source == "video":
         from drawer_lib.capture.videosource import import_video_capture
 
-        manifest, metrics = import_video_capture(scene, cfg.video, cap.video, test_every, out, root, progress)
+        seed = int(rng.integers(2**31 - 1))  # COLMAP's RANSAC seed
+        manifest, metrics = import_video_capture(scene, cfg.video, cap.video, test_every, out, root, seed, progress)
     else:
         manifest, metrics = import_dir_capture(scene, cfg.dir, test_every, out, root, progress)
     write_manifest(out / "manifest.json", manifest)

@@ -78,7 +78,7 @@ def score_poses(cap: Capture, ref_dir: Path) -> dict:
 
 
 def import_video_capture(scene: str, src: VideoSource, cfg: VideoConfig, test_every: int, out: Path, root: Path,
-                         progress: Callable = lambda it, **kw: it) -> tuple[Manifest, dict]:
+                         seed: int = 0, progress: Callable = lambda it, **kw: it) -> tuple[Manifest, dict]:
     path = resolve_input(root, src.path, f"scene {scene}: video.path")
     t0 = time.perf_counter()
     frames = read_frames(path, cfg.frame_step, cfg.max_frames, cfg.max_image_size)
@@ -93,7 +93,7 @@ def import_video_capture(scene: str, src: VideoSource, cfg: VideoConfig, test_ev
         for f, n in zip(progress(kept, desc="write frames", total=len(kept)), names):
             write_rgb(raw / n, np.ascontiguousarray(f.rgb))
         t_sfm = time.perf_counter()
-        res = reconstruct(raw, names, work / "colmap", cfg)
+        res = reconstruct(raw, names, work / "colmap", cfg, seed)
         sfm_s = time.perf_counter() - t_sfm
         n_reg = 0 if res is None else len(res.c2w)
         frac = n_reg / len(kept)

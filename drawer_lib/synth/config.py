@@ -45,7 +45,7 @@ class LayoutConfig:
     wall_bottom: float = 1.45
     wall_height: float = 0.70
     wall_depth: float = 0.33
-    tall_height: float = 2.05
+    tall_height: float = 2.05  # tall units' carcass height above the plinth
     front_gap: float = 0.003
     front_thickness: float = 0.019
 
@@ -70,6 +70,8 @@ class LayoutConfig:
         _check(0 < self.front_gap < 0.02, f"layout.front_gap = {self.front_gap} must be in (0, 0.02) m")
         _check(self.wall_bottom > self.plinth_height + self.carcass_height + self.counter_thickness + 0.3,
                "layout.wall_bottom leaves no room above the counter")
+        _check(self.carcass_height + 0.5 < self.tall_height < 2.5 - self.plinth_height,
+               f"layout.tall_height = {self.tall_height} must exceed the base cabinets and fit under the ceiling")
 
 
 @dataclass(frozen=True)

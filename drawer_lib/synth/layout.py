@@ -348,6 +348,20 @@ def _revolute_limit(b: _Builder) -> float:
     return float(np.deg2rad(b.rng.choice(b.L.revolute_limits_deg)))
 
 
+def _halves(r: Rect, g: float) -> tuple[Rect, Rect]:
+    """Left and right halves of a front rectangle with a gap ``g`` between them."""
+    xm = (r.x0 + r.x1) / 2
+    return Rect(r.x0, xm - g / 2, r.z0, r.z1, r.y_out), Rect(xm + g / 2, r.x1, r.z0, r.z1, r.y_out)
+
+
+def _flap(b: _Builder, r: Rect, material: str, hinge: str) -> None:
+    """A flap hinged at its top (lifts up to 100 deg) or bottom (drops down 90 deg), with the
+    handle on the opposite edge."""
+    limit = np.deg2rad(100.0) if hinge == "top" else np.pi / 2
+    b.add_front("flap", r, material, hinge=hinge, limit=float(limit), handle_where="bottom" if hinge == "top" else "top",
+                handle_along="h", handle_len=min(0.32, r.w * 0.5))
+
+
 def _base_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
     L, g = b.L, b.L.front_gap
     z0 = L.plinth_height
@@ -371,9 +385,9 @@ def _base_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
     if kind == "door":
         door(full, "left" if b.rng.random() < 0.5 else "right")
     elif kind == "double_door":
-        xm = (x0 + x1) / 2
-        door(Rect(full.x0, xm - g / 2, full.z0, full.z1, y), "left")
-        door(Rect(xm + g / 2, full.x1, full.z0, full.z1, y), "right")
+        left, right = _halves(full, g)
+        door(left, "left")
+        door(right, "right")
     elif kind == "drawers":
         n = 3 if L.carcass_height > 0.5 else 2
         fr = np.array([0.22, 0.34, 0.44]) if n == 3 else np.array([0.45, 0.55])
@@ -385,14 +399,13 @@ def _base_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
         drawer(Rect(full.x0, full.x1, zm + g / 2, full.z1, y), fixed=(kind == "sink"))
         lower = Rect(full.x0, full.x1, full.z0, zm - g / 2, y)
         if kind == "sink" or lower.w > 0.7:
-            xm = (x0 + x1) / 2
-            door(Rect(lower.x0, xm - g / 2, lower.z0, lower.z1, y), "left")
-            door(Rect(xm + g / 2, lower.x1, lower.z0, lower.z1, y), "right")
+            left, right = _halves(lower, g)
+            door(left, "left")
+            door(right, "right")
         else:
             door(lower, "left" if b.rng.random() < 0.5 else "right")
     elif kind == "flap_down":
-        b.add_front("flap", full, mat, hinge="bottom", limit=float(np.pi / 2), handle_where="top",
-                    handle_along="h", handle_len=min(0.32, full.w * 0.5))
+        _flap(b, full, mat, "bottom")
     elif kind == "appliance":
         e = b.add_front("appliance", full, "appliance", fixed=True, handle_where="top", handle_along="h",
                         handle_len=full.w * 0.7)
@@ -419,15 +432,11 @@ def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
     if kind == "door":
         door(full, "left" if b.rng.random() < 0.5 else "right")
     elif kind == "double_door":
-        xm = (x0 + x1) / 2
-        door(Rect(full.x0, xm - g / 2, full.z0, full.z1, y), "left")
-        door(Rect(xm + g / 2, full.x1, full.z0, full.z1, y), "right")
-    elif kind == "flap_up":
-        b.add_front("flap", full, mat, hinge="top", limit=float(np.deg2rad(100.0)), handle_where="bottom",
-                    handle_along="h", handle_len=min(0.32, full.w * 0.5))
-    elif kind == "flap_down":
-        b.add_front("flap", full, mat, hinge="bottom", limit=float(np.pi / 2), handle_where="top",
-                    handle_along="h", handle_len=min(0.32, full.w * 0.5))
+        left, right = _halves(full, g)
+        door(left, "left")
+        door(right, "right")
+    elif kind in ("flap_up", "flap_down"):
+        _flap(b, full, mat, "top" if kind == "flap_up" else "bottom")
     elif kind == "sliding":
         # two panels on two tracks; the outer one (left) slides right, the inner one left
         xm = (x0 + x1) / 2
@@ -578,7 +587,7 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     for k, kind in enumerate(wall_kinds):
         _wall_module(b, kind, wx[k], wx[k + 1])
 
-    top = L.wall_bottom + L.wall_height
+    top = L.plinth_height + L.tall_height
     x_lo, x_hi = 0.0, run
     tall_w = 0.6
     sides = [] if L.tall_units == 0 else (["left", "right"] if L.tall_units == 2 else [["left", "right"][rng.integers(2)]])
