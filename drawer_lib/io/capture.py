@@ -113,10 +113,6 @@ class Capture:
         """[C, 4, 4] OpenCV world-to-camera of all frames."""
         return np.stack([f.w2c for f in self.frames])
 
-    def camera_centers(self) -> np.ndarray:
-        """[C, 3] camera centres in world coordinates."""
-        return np.stack([f.c2w_gl[:3, 3] for f in self.frames])
-
     def to_json(self) -> dict:
         it = self.intrinsics
         d = {

@@ -56,14 +56,6 @@ def layout_mesh(layout: KitchenLayout) -> tuple[trimesh.Trimesh, np.ndarray]:
     return tm, np.concatenate(inst)
 
 
-def entity_mesh(layout: KitchenLayout, name: str) -> trimesh.Trimesh:
-    for e in layout.entities:
-        if e.name == name:
-            m = e.mesh()
-            return trimesh.Trimesh(m.verts, m.faces, process=False)
-    raise KeyError(name)
-
-
 def write_gt(layout: KitchenLayout, gt_dir: Path) -> tuple[PartsFile, trimesh.Trimesh, np.ndarray]:
     """Write ``gt/parts.json``, ``gt/mesh.ply`` and ``gt/mesh_instances.npy`` (per-face ids)."""
     gt_dir.mkdir(parents=True, exist_ok=True)

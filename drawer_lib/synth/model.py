@@ -38,13 +38,6 @@ class KitchenModel:
     geom_handle: np.ndarray  # [ngeom] bool: the geom is a handle
     joint_of_entity: dict[int, int]  # entity index -> joint id (articulated and free)
 
-    def entity_instance(self) -> np.ndarray:
-        """[n_entities] instance id of each entity (0 for static)."""
-        return np.array([e.instance_id for e in self.layout.entities], np.int32)
-
-    def qpos_address(self, entity_index: int) -> int:
-        return int(self.model.jnt_qposadr[self.joint_of_entity[entity_index]])
-
 
 def _add_entity_geoms(spec: mujoco.MjSpec, parent, e: Entity, origin: np.ndarray, prefix: str,
                       materials) -> list[tuple[str, bool]]:
@@ -165,8 +158,10 @@ class KitchenRenderer:
         self.renderer = mujoco.Renderer(km.model, cam.height, cam.width)
         mujoco.mj_forward(km.model, self.data)
 
-    def set_qpos(self, qpos: np.ndarray) -> None:
-        self.data.qpos[:] = qpos
+    def set_joint(self, entity_name: str, q: float) -> None:
+        """Pose one articulated part at joint value ``q`` (rad or m) for the next renders."""
+        ei = next(i for i, e in enumerate(self.km.layout.entities) if e.name == entity_name)
+        self.data.qpos[self.km.model.jnt_qposadr[self.km.joint_of_entity[ei]]] = q
         mujoco.mj_forward(self.km.model, self.data)
 
     def set_camera(self, c2w_gl: np.ndarray) -> None:

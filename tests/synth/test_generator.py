@@ -208,3 +208,21 @@ def test_same_seed_same_kitchen_and_capture(tmp_path, tiny_scene, exact_capture)
         assert not mismatch and not errors, (sub, mismatch)
     assert (out1 / "transforms.json").read_text() == (out2 / "transforms.json").read_text()
     assert not cmp.left_only and not cmp.right_only
+
+
+def test_opening_a_drawer_in_the_renderer_moves_its_front_by_the_joint_value():
+    layout = sample_layout(SynthConfig(seed=0))
+    parts = layout_parts(layout)
+    drawer = next(p for p in parts.parts if p.extra["family"] == "drawer")
+    intr = Intrinsics.from_fovy(np.deg2rad(40), 64, 48)
+    c = np.asarray(drawer.front.center)
+    c2w = look_at_opencv(c + 1.5 * np.asarray(drawer.front.normal) + [0, 0, 0.01], c, np.array([0, 0, 1.0]))
+    r = KitchenRenderer(build_model(layout, intr), intr)
+    try:
+        r.set_camera(opencv_to_opengl(c2w))
+        z0 = r.render()[1][24, 32]
+        r.set_joint(drawer.id, 0.2)
+        z1 = r.render()[1][24, 32]
+    finally:
+        r.close()
+    assert z0 - z1 == pytest.approx(0.2, abs=2e-3)
