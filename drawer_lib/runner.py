@@ -50,7 +50,10 @@ def peak_rss_mb() -> float:
 
 
 class Curve:
-    """Append-only ``curve.csv`` (``step, wall_s, <columns>``), flushed row by row."""
+    """Append-only ``curve.csv`` (``step, wall_s, <columns>``), flushed row by row.
+
+    ``wall_s`` is the time since the stage started unless the caller passes its own clock
+    (e.g. training time without the evaluation pauses)."""
 
     def __init__(self, path: Path, columns: list[str], t0: float):
         self.path, self.columns, self._t0 = path, ["step", "wall_s", *columns], t0
@@ -59,14 +62,14 @@ class Curve:
         self._w.writerow(self.columns)
         self._f.flush()
 
-    def log(self, step: int, **values: float) -> None:
+    def log(self, step: int, wall_s: float | None = None, **values: float | None) -> None:
         unknown = set(values) - set(self.columns)
         if unknown:
             raise KeyError(f"curve {self.path.name}: unknown columns {sorted(unknown)}")
         for k, v in values.items():
             if v is not None and not math.isfinite(v):
                 raise NonFiniteError(f"curve {self.path.name}: {k} = {v} at step {step}")
-        row = [step, f"{time.perf_counter() - self._t0:.4f}"]
+        row = [step, f"{(time.perf_counter() - self._t0) if wall_s is None else wall_s:.4f}"]
         row += ["" if values.get(c) is None else f"{values[c]:.6g}" for c in self.columns[2:]]
         self._w.writerow(row)
         self._f.flush()
@@ -94,6 +97,10 @@ class StageRun:
         """A tqdm bar labelled with the stage name (pass ``desc`` to refine it)."""
         desc = f"{self.stage}: {kw.pop('desc')}" if "desc" in kw else self.stage
         return tqdm(iterable, desc=desc, dynamic_ncols=True, mininterval=0.5, **kw)
+
+    def progress_write(self, msg: str) -> None:
+        """A log line that does not break the progress bars."""
+        tqdm.write(f"[{self.stage}] {msg}", file=sys.stderr)
 
     def curve(self, columns: list[str], name: str = "curve.csv") -> Curve:
         c = Curve(self.dir / name, columns, self.t0)

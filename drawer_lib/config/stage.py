@@ -41,3 +41,13 @@ def out_root(cfg) -> Path:
 def stage_dir(cfg, scene: str, stage: str) -> Path:
     """``<out>/<scene>/<stage>`` (DESIGN §6)."""
     return out_root(cfg) / scene / stage
+
+
+def geometry_dir(cfg, scene: str, stage: str) -> Path:
+    """Like :func:`stage_dir`, but a geometry comparison run (``+geometry_variant=<v>``, the
+    ``geometry@<scene>-<v>`` stages) keeps its ``sdf``/``mesh`` under ``<out>/<scene>/geometry/<v>/``;
+    the capture is always the scene's."""
+    variant = cfg.get("geometry_variant")
+    if variant is None or stage == "capture":
+        return stage_dir(cfg, scene, stage)
+    return out_root(cfg) / scene / "geometry" / str(variant) / stage

@@ -16,6 +16,8 @@ from drawer_lib.capture.config import CaptureConfig, SceneConfig
 from drawer_lib.config.compose import compose_params, params_diff
 from drawer_lib.config.typed import to_tree, to_typed
 from drawer_lib.errors import ConfigError
+from drawer_lib.mesh.config import MeshConfig
+from drawer_lib.sdf.config import SdfConfig
 
 SCENES = sorted(p.stem for p in (CONF / "scene").glob("*.yaml"))
 VARIANTS = {g: sorted(p.stem for p in (CONF / "capture" / g).glob("*.yaml")) for g in ("depth", "mono", "detections")}
@@ -62,6 +64,25 @@ def test_dvc_stage_config_equals_interactive_config(scene, monkeypatch):
     assert OmegaConf.to_container(a, resolve=True) == OmegaConf.to_container(b, resolve=True)
 
 
+@pytest.mark.parametrize("variant", ["neural", "tsdf", "neural_mono"])
+def test_geometry_variant_under_dvc_equals_interactive(variant, monkeypatch):
+    """`geometry@<scene>-<v>` runs `-cn dvc_stage sdf=<v>`: conf/sdf/<v>.yaml merged over
+    params.yaml's sdf must give what an interactive `sdf=<v>` run gives."""
+    monkeypatch.chdir(ROOT)
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        a = compose(config_name="config", overrides=["scene=kitchen_tiny", f"sdf={variant}"])
+        b = compose(config_name="dvc_stage", overrides=["scene=kitchen_tiny", f"sdf={variant}"])
+    assert OmegaConf.to_container(a.sdf) == OmegaConf.to_container(b.sdf)
+    sdf = to_typed(SdfConfig, a.sdf, "sdf")
+    assert to_tree(sdf) == OmegaConf.to_container(a.sdf)  # every key known to the schema, none missing
+    assert sdf.method == ("tsdf" if variant == "tsdf" else "neural")
+
+
+def test_mesh_config_converts_strictly():
+    cfg = compose_cfg([])
+    assert to_tree(to_typed(MeshConfig, cfg.mesh, "mesh")) == OmegaConf.to_container(cfg.mesh)
+
+
 def test_dvc_yaml_params_exist():
     dvc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
     params = yaml.safe_load((ROOT / "params.yaml").read_text())
@@ -70,7 +91,7 @@ def test_dvc_yaml_params_exist():
         for p in body.get("params", []):
             if isinstance(p, dict):
                 (path,) = p
-                assert "${item}" in path or (ROOT / path).exists()
+                assert "${item" in path or (ROOT / path).exists()
                 continue
             node = params
             for k in p.split("."):

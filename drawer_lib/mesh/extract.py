@@ -1,0 +1,120 @@
+"""Marching cubes of an SDF over a box, restricted to where train cameras saw.
+
+The SDF is evaluated on a coarse grid first and only near its zero level set on the fine grid
+(elsewhere the upsampled coarse values keep the right sign), so extraction costs scale with the
+surface, not the volume.
+"""
+
+from collections.abc import Callable
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import trimesh
+from skimage.measure import marching_cubes
+
+from drawer_lib.geometry.camera import Intrinsics
+
+SdfFn = Callable[[torch.Tensor], torch.Tensor]  # [N, 3] -> [N], no gradient
+
+
+def grid_shape(lo: np.ndarray, hi: np.ndarray, cell: float) -> tuple[int, int, int]:
+    return tuple(int(n) for n in np.ceil((np.asarray(hi) - np.asarray(lo)) / cell).astype(int) + 1)
+
+
+def grid_points(lo: np.ndarray, shape: tuple[int, int, int], cell: float) -> torch.Tensor:
+    axes = [torch.tensor(lo[a] + cell * np.arange(shape[a]), dtype=torch.float32) for a in range(3)]
+    return torch.stack(torch.meshgrid(*axes, indexing="ij"), -1)
+
+
+@torch.no_grad()
+def evaluate(sdf_fn: SdfFn, pts: torch.Tensor, chunk: int = 1 << 16) -> torch.Tensor:
+    flat = pts.reshape(-1, 3)
+    out = torch.cat([sdf_fn(c) for c in flat.split(chunk)]) if len(flat) else torch.zeros(0)
+    if not torch.all(torch.isfinite(out)):
+        raise FloatingPointError("SDF evaluation produced non-finite values")
+    return out.reshape(pts.shape[:-1])
+
+
+@torch.no_grad()
+def sdf_grid(sdf_fn: SdfFn, lo: np.ndarray, hi: np.ndarray, cell: float, coarse_factor: int = 4) -> np.ndarray:
+    """SDF values [X, Y, Z] on the grid of cell ``cell`` from ``lo`` (covering ``hi``); exact within
+    two coarse cells of the zero level set, upsampled coarse values elsewhere."""
+    shape = grid_shape(lo, hi, cell)
+    if coarse_factor <= 1:
+        return evaluate(sdf_fn, grid_points(lo, shape, cell)).numpy()
+    ccell = cell * coarse_factor
+    cshape = grid_shape(lo, hi, ccell)
+    coarse = evaluate(sdf_fn, grid_points(lo, cshape, ccell))
+    # upsample to the fine vertices (aligned at lo: fine vertex k sits at coarse coordinate k / factor)
+    up = F.interpolate(coarse[None, None], size=tuple((np.array(cshape) - 1) * coarse_factor + 1), mode="trilinear",
+                       align_corners=True)[0, 0]
+    up = up[: shape[0], : shape[1], : shape[2]]
+    pad = [max(shape[a] - up.shape[a], 0) for a in range(3)]
+    if any(pad):
+        up = F.pad(up[None, None], (0, pad[2], 0, pad[1], 0, pad[0]), mode="replicate")[0, 0]
+    near = up.abs() < 2.0 * ccell
+    idx = near.nonzero()  # only these fine vertices are evaluated; no full grid of points is built
+    pts = torch.tensor(lo, dtype=torch.float32) + cell * idx.to(torch.float32)
+    vals = up.clone()
+    vals[near] = evaluate(sdf_fn, pts)
+    return vals.numpy()
+
+
+def frustum_mask(lo: np.ndarray, shape: tuple[int, int, int], cell: float, intr: Intrinsics, w2c: np.ndarray,
+                 near: float = 0.05, chunk: int = 1 << 20) -> np.ndarray:
+    """Vertices inside the view frustum (in front of the camera, within the image) of at least one
+    of the cameras ``w2c`` [C, 4, 4]. Computed in float32 chunks of vertices (memory stays
+    bounded for large grids)."""
+    axes = [torch.tensor(lo[a] + cell * np.arange(shape[a]), dtype=torch.float32) for a in range(3)]
+    T = torch.tensor(np.asarray(w2c), dtype=torch.float32)  # [C, 4, 4]
+    seen = torch.zeros(shape, dtype=torch.bool)
+    flat = seen.view(-1)
+    n = int(np.prod(shape))
+    YZ = shape[1] * shape[2]
+    for s0 in range(0, n, chunk):
+        k = torch.arange(s0, min(s0 + chunk, n))
+        p = torch.stack([axes[0][k // YZ], axes[1][(k // shape[2]) % shape[1]], axes[2][k % shape[2]]], -1)
+        ok = torch.zeros(len(k), dtype=torch.bool)
+        for Tc in T:
+            pc = p @ Tc[:3, :3].T + Tc[:3, 3]
+            z = pc[:, 2]
+            zs = torch.where(z > near, z, torch.ones_like(z))
+            u = intr.fx * pc[:, 0] / zs + intr.cx
+            v = intr.fy * pc[:, 1] / zs + intr.cy
+            ok |= (z > near) & (u >= 0) & (u <= intr.width) & (v >= 0) & (v <= intr.height)
+        flat[s0 : s0 + len(k)] = ok
+    return seen.numpy()
+
+
+def marching_cubes_mesh(values: np.ndarray, lo: np.ndarray, cell: float, level: float = 0.0,
+                        mask: np.ndarray | None = None) -> trimesh.Trimesh:
+    """Zero-level-set (``level``) mesh of an SDF grid, outward normals (towards positive SDF).
+    An empty mesh when the level set does not cross the (masked) grid."""
+    v = np.asarray(values, np.float32)
+    if not np.all(np.isfinite(v)):
+        raise FloatingPointError("marching_cubes_mesh: non-finite SDF values")
+    if mask is not None and not mask.any():
+        return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
+    if not (v.min() < level < v.max()):
+        return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
+    verts, faces, _, _ = marching_cubes(v, level, spacing=(cell, cell, cell), mask=mask, allow_degenerate=False)
+    # skimage's winding already makes face normals point towards increasing values (s > 0)
+    return trimesh.Trimesh(verts + np.asarray(lo), faces, process=False)
+
+
+def cube_mask(vertex_ok: np.ndarray) -> np.ndarray:
+    """Marching-cubes mask (scikit-image tests the cube at its lowest corner) that keeps the
+    cubes whose 8 corners are all ``vertex_ok`` [X, Y, Z]."""
+    ok = np.asarray(vertex_ok, bool)
+    out = np.zeros_like(ok)
+    if min(ok.shape) < 2:
+        return out
+    X, Y, Z = (n - 1 for n in ok.shape)
+    c = np.ones((X, Y, Z), bool)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                c &= ok[dx : dx + X, dy : dy + Y, dz : dz + Z]
+    out[:X, :Y, :Z] = c
+    return out

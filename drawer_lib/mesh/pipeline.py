@@ -1,0 +1,63 @@
+"""What the ``mesh`` stage does: marching cubes of a field where the train cameras saw, PyMeshLab
+clean-up, ``mesh.ply``, and the metrics against ``gt/mesh.ply`` when it exists."""
+
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from drawer_lib.errors import InputError
+from drawer_lib.io.capture import Capture
+from drawer_lib.io.manifest import Manifest
+from drawer_lib.mesh.clean import clean_mesh
+from drawer_lib.mesh.config import MeshConfig
+from drawer_lib.mesh.extract import cube_mask, frustum_mask, grid_shape, marching_cubes_mesh, sdf_grid
+from drawer_lib.metrics.geometry import MeshEvaluator
+from drawer_lib.runner import StageRun
+from drawer_lib.sdf.io import LoadedField
+
+
+def extract_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture) -> trimesh.Trimesh:
+    """Raw marching-cubes mesh of ``field`` restricted to the train frusta (and, for grid
+    fields, to cubes whose 8 corners were observed)."""
+    w2c = np.stack([cap.frames[i].w2c for i in cap.train])
+    if field.grid is not None:
+        g = field.grid
+        obs = g.observed()
+        mask = cube_mask(obs) & frustum_mask(g.lo, obs.shape, g.cell, cap.intrinsics, w2c, cfg.near)
+        values, lo, cell = np.where(obs, g.values, g.unknown), g.lo, g.cell
+    else:
+        lo, cell = field.lo, cfg.cell
+        values = sdf_grid(field.sdf, field.lo, field.hi, cfg.cell, cfg.coarse_factor)
+        mask = frustum_mask(lo, values.shape, cell, cap.intrinsics, w2c, cfg.near)
+    if not mask.any():
+        raise InputError(f"mesh: no part of the field's box {np.round(field.lo, 3).tolist()} - "
+                         f"{np.round(field.hi, 3).tolist()} lies in a train camera's view (empty visibility region)")
+    return marching_cubes_mesh(values, lo, cell, cfg.level, mask)
+
+
+def run_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture, manifest: Manifest, run: StageRun, out: Path) -> dict:
+    t0 = time.perf_counter()
+    raw = extract_mesh(cfg, field, cap)
+    t_mc = time.perf_counter() - t0
+    if len(raw.faces) == 0:
+        raise InputError(f"mesh: the level set s = {cfg.level} of the field does not cross the seen region "
+                         f"(field made by {field.info.get('method', field.kind)}); nothing to mesh")
+    mesh, counts = clean_mesh(raw, cfg.clean)
+    if len(mesh.faces) == 0:
+        raise InputError(f"mesh: clean-up removed every face (min_component_diag = {cfg.clean.min_component_diag})")
+    t_clean = time.perf_counter() - t0 - t_mc
+    mesh.export(out / "mesh.ply")
+    m = {"field": field.info.get("method", field.kind), "marching_cubes_s": round(t_mc, 3),
+         "clean_s": round(t_clean, 3), **counts, "vertices": len(mesh.vertices),
+         "area_m2": float(mesh.area)}
+    if run.needs(manifest, "metrics_vs_gt", "gt"):
+        gt = trimesh.load(cap.root / "gt" / "mesh.ply", process=False)
+        w2c = np.stack([cap.frames[i].w2c for i in cap.train])
+        ev = MeshEvaluator(gt, cap.intrinsics, w2c, n_points=cfg.eval_points, seed=run.seed)
+        r = ev(mesh)
+        m.update({k: r[k] for k in ("chamfer_l1", "accuracy", "completeness", "fscore_1cm", "fscore_2cm",
+                                    "precision_1cm", "recall_1cm", "precision_2cm", "recall_2cm",
+                                    "normal_consistency")})
+    return m

@@ -1,0 +1,162 @@
+"""Training rays of a capture: per-pixel targets of the train frames and batch sampling.
+
+Rays are parametrised so that their camera-frame z component is 1: the parameter t of a point
+o + t d is its z-depth, so rendered depths compare directly with depth maps.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.io.capture import Capture
+from drawer_lib.sdf.priors import MonoEstimator
+
+
+def pixel_dirs_cam(intr: Intrinsics) -> np.ndarray:
+    """[H*W, 3] camera-frame directions (x, y, 1) through pixel centres (library convention)."""
+    j, i = np.meshgrid(np.arange(intr.width) + 0.5, np.arange(intr.height) + 0.5)
+    return np.stack([(j - intr.cx) / intr.fx, (i - intr.cy) / intr.fy, np.ones_like(j)], -1).reshape(-1, 3)
+
+
+@dataclass
+class RayBatch:
+    origins: Tensor  # [R, 3]
+    dirs: Tensor  # [R, 3] (camera z component 1)
+    rgb: Tensor  # [R, 3] in [0, 1]
+    depth: Tensor | None  # [R] metric z-depth, 0 = invalid
+    mono_depth: Tensor | None  # [R]
+    normal: Tensor | None  # [R, 3] world frame
+    groups: int  # rays come in `groups` consecutive blocks, each from one image
+
+
+class RayBank:
+    """Targets of the train frames, held in memory (float32), sampled in image groups."""
+
+    def __init__(self, cap: Capture, frames: list[int], use_depth: bool, mono: MonoEstimator | None,
+                 use_mono_depth: bool, use_normal: bool, sparse_points: np.ndarray | None = None):
+        self.intr = cap.intrinsics
+        if cap.intrinsics.has_distortion:
+            raise InputError(f"{cap.root}: the SDF needs undistorted (PINHOLE) images; this capture has distortion "
+                             f"{cap.intrinsics.dist}")
+        self.frames = frames
+        c2w = np.stack([cap.frames[i].c2w for i in frames])
+        self.R = torch.tensor(c2w[:, :3, :3], dtype=torch.float32)
+        self.C = torch.tensor(c2w[:, :3, 3], dtype=torch.float32)
+        self.d_cam = torch.tensor(pixel_dirs_cam(self.intr), dtype=torch.float32)
+        self.rgb = torch.tensor(np.stack([cap.image(i).reshape(-1, 3) for i in frames]), dtype=torch.float32) / 255.0
+        self.depth = self.mono = self.normal = None
+        if use_depth:
+            self.depth = torch.tensor(np.stack([cap.depth(i).reshape(-1) for i in frames]))
+        if use_mono_depth:
+            self.mono = torch.tensor(np.stack([mono.depth(i).reshape(-1) for i in frames]))
+        if use_normal:
+            n = np.stack([mono.normal(i).reshape(-1, 3) for i in frames])  # camera frame
+            self.normal = torch.einsum("iab,inb->ina", self.R, torch.tensor(n, dtype=torch.float32))
+        self.sfm = None
+        if sparse_points is not None and len(sparse_points):
+            self.sfm = self._project(sparse_points)
+
+    @property
+    def n_images(self) -> int:
+        return len(self.frames)
+
+    @property
+    def n_pixels(self) -> int:
+        return self.intr.width * self.intr.height
+
+    def _project(self, X: np.ndarray) -> tuple[Tensor, Tensor, Tensor] | None:
+        """(image index, pixel index, z-depth) of points seen by each train frame (in front,
+        inside the image); visibility is not tested (SfM points were triangulated from views)."""
+        imgs, pixs, zs = [], [], []
+        Xt = torch.tensor(X, dtype=torch.float32)
+        for k in range(self.n_images):
+            pc = (Xt - self.C[k]) @ self.R[k]
+            z = pc[:, 2]
+            u = self.intr.fx * pc[:, 0] / z.clamp_min(1e-6) + self.intr.cx
+            v = self.intr.fy * pc[:, 1] / z.clamp_min(1e-6) + self.intr.cy
+            ok = (z > 0.05) & (u >= 0) & (u < self.intr.width) & (v >= 0) & (v < self.intr.height)
+            pix = v[ok].long() * self.intr.width + u[ok].long()
+            imgs.append(torch.full_like(pix, k))
+            pixs.append(pix)
+            zs.append(z[ok])
+        if not sum(len(p) for p in pixs):
+            return None
+        return torch.cat(imgs), torch.cat(pixs), torch.cat(zs)
+
+    def rays(self, img: Tensor, pix: Tensor) -> tuple[Tensor, Tensor]:
+        """Origins and directions [N, 3] of pixels ``pix`` of train images ``img`` (both [N])."""
+        d = torch.einsum("nab,nb->na", self.R[img], self.d_cam[pix])
+        return self.C[img], d
+
+    def sample(self, groups: int, per_group: int, gen: torch.Generator) -> RayBatch:
+        img = torch.randint(0, self.n_images, (groups,), generator=gen).repeat_interleave(per_group)
+        pix = torch.randint(0, self.n_pixels, (groups * per_group,), generator=gen)
+        o, d = self.rays(img, pix)
+        return RayBatch(
+            o, d, self.rgb[img, pix],
+            None if self.depth is None else self.depth[img, pix],
+            None if self.mono is None else self.mono[img, pix],
+            None if self.normal is None else self.normal[img, pix],
+            groups,
+        )
+
+    def sample_sfm(self, n: int, gen: torch.Generator) -> tuple[Tensor, Tensor, Tensor] | None:
+        """Rays through the pixels of ``n`` random SfM observations, with their depths."""
+        if self.sfm is None:
+            return None
+        img, pix, z = self.sfm
+        k = torch.randint(0, len(z), (n,), generator=gen)
+        o, d = self.rays(img[k], pix[k])
+        return o, d, z[k]
+
+
+def focus_depth(C: np.ndarray, D: np.ndarray) -> float:
+    """Median depth, along each optical axis, of the point closest to all optical axes (least
+    squares): the typical viewing depth of a capture without depth. C, D: [N, 3] centres and unit
+    viewing directions. NaN or <= 0 when the axes do not meet in front of the cameras."""
+    A, b = np.zeros((3, 3)), np.zeros(3)
+    for c, d in zip(C, D):
+        Pm = np.eye(3) - np.outer(d, d)
+        A, b = A + Pm, b + Pm @ c
+    focus = np.linalg.lstsq(A, b, rcond=None)[0]
+    return float(np.median([(focus - c) @ d for c, d in zip(C, D)]))
+
+
+def scene_box(cap: Capture, bank: RayBank, margin: float, far_factor: float,
+              sparse_points: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, str]:
+    """(lo, hi, typical viewing depth, how) of the reconstruction box; see BoundsConfig.
+    Depth or SfM points give the 0.05-99.95 % range of the points plus the margin (the
+    percentiles drop outliers only: a side wall seen at the edge of a few frames must stay in)."""
+    C = bank.C.numpy()
+    if bank.depth is not None:
+        pts, zs = [], []
+        sub = torch.arange(0, bank.n_pixels, 7)
+        for k in range(bank.n_images):
+            z = bank.depth[k, sub]
+            ok = z > 0
+            o, d = bank.rays(torch.full((int(ok.sum()),), k), sub[ok])
+            pts.append((o + d * z[ok, None]).numpy())
+            zs.append(z[ok].numpy())
+        P, typical, how = np.concatenate(pts), float(np.median(np.concatenate(zs))), "metric depth"
+    elif sparse_points is not None and len(sparse_points) >= 10:
+        P = sparse_points
+        typical = float(np.median(np.linalg.norm(P[:, None] - C[None], axis=-1)))
+        how = "SfM points"
+    else:
+        typical = focus_depth(C, bank.R[:, :, 2].numpy())
+        if not np.isfinite(typical) or typical <= 0:
+            raise InputError(f"{cap.root}: the cameras' optical axes do not meet in front of them; "
+                             "the scene box cannot be found without depth or SfM points")
+        far = far_factor * typical
+        corners = np.array([[0, 0], [bank.intr.width, 0], [0, bank.intr.height], [bank.intr.width, bank.intr.height]])
+        dc = np.stack([(corners[:, 0] - bank.intr.cx) / bank.intr.fx, (corners[:, 1] - bank.intr.cy) / bank.intr.fy,
+                       np.ones(4)], -1)
+        P = np.concatenate([C] + [c + far * dc @ R.T for c, R in zip(C, bank.R.numpy())])
+        how = f"camera frusta cut at {far_factor} x the {typical:.2f} m focus depth"
+        return P.min(0) - margin, P.max(0) + margin, typical, how
+    lo, hi = np.percentile(P, 0.05, axis=0) - margin, np.percentile(P, 99.95, axis=0) + margin
+    return lo, hi, typical, how

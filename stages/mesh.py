@@ -1,0 +1,37 @@
+"""DVC stage ``mesh@<scene>``: ``sdf/field.pt`` -> ``out/<scene>/mesh/`` (``mesh.ply``, and
+``metrics.json`` against ``gt/mesh.ply`` when the capture has ground truth).
+
+    python -m stages.mesh scene=kitchen_small                      # interactive, conf/
+    python -m stages.mesh -cn dvc_stage scene=kitchen_small        # as DVC runs it: params.yaml
+    python -m stages.mesh -cn dvc_stage scene=kitchen_small +geometry_variant=tsdf
+                                                                   # a comparison variant's field
+"""
+
+import hydra
+from omegaconf import DictConfig
+
+from drawer_lib.config.stage import geometry_dir, scene_of
+from drawer_lib.config.typed import to_typed
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.mesh.config import MeshConfig
+from drawer_lib.mesh.pipeline import run_mesh
+from drawer_lib.runner import main_guard, stage_run
+from drawer_lib.sdf.io import load_field
+
+
+@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+@main_guard
+def main(cfg: DictConfig) -> None:
+    scene, _ = scene_of(cfg)
+    mesh_cfg = to_typed(MeshConfig, cfg.mesh, "mesh")
+    cap_dir = geometry_dir(cfg, scene, "capture")
+    manifest = read_manifest(cap_dir / "manifest.json")
+    cap = load_capture(cap_dir, check_files=False)
+    field = load_field(geometry_dir(cfg, scene, "sdf") / "field.pt")
+    with stage_run("mesh", geometry_dir(cfg, scene, "mesh"), seed=cfg.seed) as run:
+        run.metrics.update(run_mesh(mesh_cfg, field, cap, manifest, run, run.dir))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,163 @@
+"""Marching cubes on analytic SDFs, masks, PyMeshLab clean-up, grid fields, and the geometry
+metrics (DESIGN §6) on analytic meshes."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+
+from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.mesh.clean import CleanConfig, clean_mesh
+from drawer_lib.mesh.extract import cube_mask, frustum_mask, grid_shape, marching_cubes_mesh, sdf_grid
+from drawer_lib.metrics.geometry import MeshEvaluator
+from drawer_lib.sdf.io import GridSDF
+
+R = 0.5
+
+
+def sphere_sdf(x: torch.Tensor) -> torch.Tensor:
+    return x.norm(dim=-1) - R
+
+
+def sphere_mesh(cell=0.01, coarse=4):
+    lo, hi = np.full(3, -0.8), np.full(3, 0.8)
+    v = sdf_grid(sphere_sdf, lo, hi, cell, coarse)
+    return marching_cubes_mesh(v, lo, cell)
+
+
+@pytest.mark.parametrize("coarse", [1, 4])
+def test_sphere_area_within_one_percent_and_normals_point_out(coarse):
+    m = sphere_mesh(coarse=coarse)
+    assert abs(m.area - 4 * math.pi * R**2) / (4 * math.pi * R**2) < 0.01
+    c = m.triangles_center
+    assert (np.einsum("ij,ij->i", m.face_normals, c) > 0).mean() > 0.999
+    assert abs(np.linalg.norm(m.vertices, axis=1).mean() - R) < 1e-3
+
+
+def test_coarse_to_fine_grid_equals_dense_near_the_surface():
+    lo, hi, cell = np.full(3, -0.8), np.full(3, 0.8), 0.02
+    dense = sdf_grid(sphere_sdf, lo, hi, cell, 1)
+    c2f = sdf_grid(sphere_sdf, lo, hi, cell, 4)
+    near = np.abs(dense) < 2 * cell
+    np.testing.assert_allclose(c2f[near], dense[near], atol=1e-6)
+    assert np.all(np.sign(c2f[~near]) == np.sign(dense[~near]))
+
+
+def test_level_key_offsets_the_surface():
+    lo, hi, cell = np.full(3, -0.8), np.full(3, 0.8), 0.01
+    v = sdf_grid(sphere_sdf, lo, hi, cell, 4)
+    m = marching_cubes_mesh(v, lo, cell, level=0.1)
+    assert abs(np.linalg.norm(m.vertices, axis=1).mean() - (R + 0.1)) < 2e-3
+
+
+def test_no_crossing_or_empty_mask_gives_an_empty_mesh():
+    v = np.ones((5, 5, 5), np.float32)
+    assert len(marching_cubes_mesh(v, np.zeros(3), 0.1).faces) == 0
+    v[2, 2, 2] = -1
+    assert len(marching_cubes_mesh(v, np.zeros(3), 0.1, mask=np.zeros(v.shape, bool)).faces) == 0
+    with pytest.raises(FloatingPointError):
+        marching_cubes_mesh(np.full((3, 3, 3), np.nan), np.zeros(3), 0.1)
+
+
+def test_cube_mask_keeps_cubes_with_all_corners_known():
+    ok = np.ones((4, 4, 4), bool)
+    ok[3, 3, 3] = False
+    m = cube_mask(ok)
+    assert m.shape == ok.shape and not m[2, 2, 2] and m[1, 1, 1] and m[:3, :3, :3].sum() == 26
+    assert not m[3].any()  # the last layer starts no cube
+
+
+def test_grid_field_never_meshes_unobserved_cells():
+    """A TSDF-like grid: the sphere observed only for z < 0.1; no vertex may come from the
+    unknown region or from the border between known and unknown."""
+    lo, cell = np.full(3, -0.8), 0.02
+    v = sdf_grid(sphere_sdf, lo, np.full(3, 0.8), cell, 1).astype(np.float32)
+    z = lo[2] + cell * np.arange(v.shape[2])
+    v[:, :, z >= 0.1] = np.nan
+    g = GridSDF(lo, cell, v)
+    obs = g.observed()
+    m = marching_cubes_mesh(np.where(obs, v, g.unknown), lo, cell, 0.0, cube_mask(obs))
+    assert len(m.faces) > 0 and m.vertices[:, 2].max() < 0.1
+    assert abs(np.linalg.norm(m.vertices, axis=1) - R).max() < 0.005
+    # interpolation returns `unknown` wherever a corner is unobserved
+    s = g.sdf(torch.tensor([[0.0, 0.0, -R], [0.0, 0.0, 0.3]], dtype=torch.float32))
+    assert abs(float(s[0])) < 1e-3 and float(s[1]) == g.unknown
+
+
+def test_frustum_mask_marks_what_a_camera_sees():
+    intr = Intrinsics(fx=50.0, fy=50.0, cx=50.0, cy=40.0, width=100, height=80)
+    w2c = np.eye(4)[None]  # camera at the origin looking along +z
+    lo, cell = np.array([-1.0, -1.0, -1.0]), 0.1
+    shape = grid_shape(lo, np.array([1.0, 1.0, 2.0]), cell)
+    m = frustum_mask(lo, shape, cell, intr, w2c)
+    k = lambda p: tuple(np.rint((np.array(p) - lo) / cell).astype(int))  # noqa: E731
+    assert m[k([0, 0, 1])] and not m[k([0, 0, -0.5])] and not m[k([1, 0, 0.5])]
+
+
+def test_clean_drops_small_components_and_simplifies():
+    big = trimesh.creation.icosphere(subdivisions=4, radius=0.5)
+    small = trimesh.creation.icosphere(subdivisions=1, radius=0.01)
+    small.apply_translation([2.0, 0, 0])
+    m = trimesh.util.concatenate([big, small])
+    out, counts = clean_mesh(m, CleanConfig(min_component_diag=0.05, target_faces=1000))
+    assert counts["faces_in"] == len(m.faces) and counts["faces_components"] == len(big.faces)
+    assert counts["faces_out"] <= 1000 and counts["faces_out"] >= 900
+    assert np.abs(out.vertices).max() < 0.6  # the small component is gone
+    assert abs(out.area - big.area) / big.area < 0.02
+    out2, _ = clean_mesh(big, CleanConfig(min_component_diag=0.0, target_faces=0, remesh_iters=2, remesh_edge=0.05))
+    e = out2.edges_unique_length
+    assert 0.02 < np.median(e) < 0.08 and abs(out2.area - big.area) / big.area < 0.03
+
+
+def test_clean_of_an_empty_mesh_is_empty():
+    out, counts = clean_mesh(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)), CleanConfig())
+    assert len(out.faces) == 0 and counts["faces_out"] == 0
+
+
+def _views_around(n=8, dist=2.0):
+    """Cameras on a circle looking at the origin (OpenCV frames)."""
+    w2c = []
+    for a in np.linspace(0, 2 * np.pi, n, endpoint=False):
+        c = np.array([dist * np.cos(a), dist * np.sin(a), 0.3])
+        f = -c / np.linalg.norm(c)
+        r = np.cross(f, [0, 0, 1.0])
+        r /= np.linalg.norm(r)
+        d = np.cross(f, r)
+        Rw = np.stack([r, d, f], 1)  # columns: camera axes in world
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = Rw.T, -Rw.T @ c
+        w2c.append(T)
+    return Intrinsics(fx=80.0, fy=80.0, cx=60.0, cy=45.0, width=120, height=90), np.stack(w2c)
+
+
+def test_metrics_of_a_mesh_against_itself_are_zero_and_see_a_shift():
+    gt = trimesh.creation.icosphere(subdivisions=5, radius=R)
+    intr, w2c = _views_around()
+    ev = MeshEvaluator(gt, intr, w2c, n_points=20_000)
+    r = ev(gt)
+    assert r["chamfer_l1"] < 1e-6 and r["fscore_1cm"] == 1.0 and r["normal_consistency"] > 0.9999
+    # the analytic sphere from marching cubes against the exact icosphere: ~0
+    r = ev(sphere_mesh())
+    assert r["chamfer_l1"] < 1e-3 and r["fscore_1cm"] > 0.999
+    shifted = gt.copy()
+    shifted.vertices = shifted.vertices * (R + 0.005) / R  # concentric, 5 mm larger
+    r = ev(shifted)
+    assert r["chamfer_l1"] == pytest.approx(0.005, rel=0.05)
+    assert r["fscore_1cm"] == 1.0
+    grown = gt.copy()
+    grown.vertices = grown.vertices * (R + 0.015) / R
+    assert ev(grown)["fscore_1cm"] < 0.01 and ev(grown)["fscore_2cm"] == 1.0
+
+
+def test_metrics_refuse_empty_or_unseen_predictions():
+    gt = trimesh.creation.icosphere(subdivisions=3, radius=R)
+    intr, w2c = _views_around()
+    ev = MeshEvaluator(gt, intr, w2c, n_points=5000)
+    with pytest.raises(ValueError, match="empty"):
+        ev(trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), int)))
+    inside = trimesh.creation.icosphere(subdivisions=2, radius=0.1)  # hidden behind the GT surface
+    with pytest.raises(ValueError, match="no predicted surface"):
+        ev(inside)
