@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video clean
+.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -41,6 +41,10 @@ bench-capture: setup ## capture of kitchen_small: wall time, peak memory, no-op 
 
 bench-video: setup ## video source on a rendered + encoded kitchen_small: registration and pose error
 	$(BIN)/python scripts/bench_video_sfm.py
+
+bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro capture@kitchen_small
+	$(BIN)/python scripts/bench_geometry.py
 
 clean: ## remove generated outputs (DVC's cache keeps them)
 	rm -rf out multirun outputs

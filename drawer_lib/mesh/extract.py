@@ -118,3 +118,15 @@ def cube_mask(vertex_ok: np.ndarray) -> np.ndarray:
                 c &= ok[dx : dx + X, dy : dy + Y, dz : dz + Z]
     out[:X, :Y, :Z] = c
     return out
+
+
+def grid_field_mesh(grid, intr: Intrinsics, w2c: np.ndarray, level: float = 0.0, near: float = 0.05) -> trimesh.Trimesh:
+    """Mesh of a :class:`~drawer_lib.sdf.io.GridSDF` on its own voxel grid: only cubes whose 8
+    corners were observed and that lie in a train frustum (an unobserved corner would otherwise
+    put a false surface at the back of the truncation band). Raises ValueError when no cube is
+    both observed and seen."""
+    obs = grid.observed()
+    mask = cube_mask(obs) & frustum_mask(grid.lo, obs.shape, grid.cell, intr, w2c, near)
+    if not mask.any():
+        raise ValueError("grid_field_mesh: no observed cube lies in a train camera's view")
+    return marching_cubes_mesh(np.where(obs, grid.values, grid.unknown), grid.lo, grid.cell, level, mask)

@@ -12,7 +12,7 @@ from drawer_lib.io.capture import Capture
 from drawer_lib.io.manifest import Manifest
 from drawer_lib.mesh.clean import clean_mesh
 from drawer_lib.mesh.config import MeshConfig
-from drawer_lib.mesh.extract import cube_mask, frustum_mask, grid_shape, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.extract import frustum_mask, grid_field_mesh, marching_cubes_mesh, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.runner import StageRun
 from drawer_lib.sdf.io import LoadedField
@@ -22,18 +22,18 @@ def extract_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture) -> trimesh.T
     """Raw marching-cubes mesh of ``field`` restricted to the train frusta (and, for grid
     fields, to cubes whose 8 corners were observed)."""
     w2c = np.stack([cap.frames[i].w2c for i in cap.train])
+    empty = InputError(f"mesh: no part of the field's box {np.round(field.lo, 3).tolist()} - "
+                       f"{np.round(field.hi, 3).tolist()} lies in a train camera's view (empty visibility region)")
     if field.grid is not None:
-        g = field.grid
-        obs = g.observed()
-        mask = cube_mask(obs) & frustum_mask(g.lo, obs.shape, g.cell, cap.intrinsics, w2c, cfg.near)
-        values, lo, cell = np.where(obs, g.values, g.unknown), g.lo, g.cell
-    else:
-        lo, cell = field.lo, cfg.cell
-        values = sdf_grid(field.sdf, field.lo, field.hi, cfg.cell, cfg.coarse_factor)
-        mask = frustum_mask(lo, values.shape, cell, cap.intrinsics, w2c, cfg.near)
+        try:
+            return grid_field_mesh(field.grid, cap.intrinsics, w2c, cfg.level, cfg.near)
+        except ValueError as e:
+            raise empty from e
+    lo, cell = field.lo, cfg.cell
+    values = sdf_grid(field.sdf, field.lo, field.hi, cfg.cell, cfg.coarse_factor)
+    mask = frustum_mask(lo, values.shape, cell, cap.intrinsics, w2c, cfg.near)
     if not mask.any():
-        raise InputError(f"mesh: no part of the field's box {np.round(field.lo, 3).tolist()} - "
-                         f"{np.round(field.hi, 3).tolist()} lies in a train camera's view (empty visibility region)")
+        raise empty
     return marching_cubes_mesh(values, lo, cell, cfg.level, mask)
 
 

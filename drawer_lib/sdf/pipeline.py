@@ -61,7 +61,7 @@ def _run_tsdf(cfg, cap, manifest, run, out, probe) -> dict:
          "grid_shape": list(grid.values.shape)}
     curve = run.curve(CURVE_COLUMNS)
     if probe is not None:
-        r = probe(grid.sdf, grid.lo, grid.hi, None)
+        r = probe(grid.sdf, grid.lo, grid.hi, None, grid=grid)
         curve.log(len(cap.train), wall_s=fuse_s, **_finite(r))
         m.update({f"quick_{k}": v for k, v in r.items() if np.isfinite(v)})
     return m

@@ -15,8 +15,9 @@ import trimesh
 
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
-from drawer_lib.mesh.extract import frustum_mask, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.extract import frustum_mask, grid_field_mesh, marching_cubes_mesh, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
+from drawer_lib.sdf.io import GridSDF
 from drawer_lib.sdf.rays import pixel_dirs_cam
 
 DepthFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]  # (origins, dirs [R, 3]) -> z-depth [R]
@@ -59,17 +60,23 @@ class GeometryProbe:
         f = lambda a: torch.tensor(np.concatenate(a), dtype=torch.float32)  # noqa: E731
         return TestDepth(f(os_), f(ds), f(zs))
 
-    def quick_mesh(self, sdf_fn: Callable, lo: np.ndarray, hi: np.ndarray) -> trimesh.Trimesh:
+    def quick_mesh(self, sdf_fn: Callable, lo: np.ndarray, hi: np.ndarray, grid: GridSDF | None = None) -> trimesh.Trimesh:
+        if grid is not None:  # a fused grid is meshed on its own voxels, observed cubes only
+            try:
+                return grid_field_mesh(grid, self.cap.intrinsics, self.w2c)
+            except ValueError:  # nothing observed in view: no quick mesh (an empty curve cell)
+                return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
         v = sdf_grid(sdf_fn, lo, hi, self.cell, 4)
         mask = frustum_mask(lo, v.shape, self.cell, self.cap.intrinsics, self.w2c)
         return marching_cubes_mesh(v, lo, self.cell, 0.0, mask)
 
-    def __call__(self, sdf_fn: Callable, lo: np.ndarray, hi: np.ndarray, depth_fn: DepthFn | None) -> dict[str, float]:
+    def __call__(self, sdf_fn: Callable, lo: np.ndarray, hi: np.ndarray, depth_fn: DepthFn | None,
+                 grid: GridSDF | None = None) -> dict[str, float]:
         """``chamfer_l1`` (m), ``fscore_1cm``, ``fscore_2cm`` of the quick mesh (NaN when it is
         empty) and ``test_depth_l1`` (m, mean over test pixels where GT has depth)."""
         out = {"chamfer_l1": float("nan"), "fscore_1cm": float("nan"), "fscore_2cm": float("nan"),
                "test_depth_l1": float("nan")}
-        mesh = self.quick_mesh(sdf_fn, lo, hi)
+        mesh = self.quick_mesh(sdf_fn, lo, hi, grid)
         if len(mesh.faces):
             r = self.evaluator(mesh)
             out.update({k: r[k] for k in ("chamfer_l1", "fscore_1cm", "fscore_2cm")})

@@ -116,3 +116,21 @@ def test_model_slots_are_named_and_refuse_to_pretend(exact_capture):
         make_estimator("marigold", cap)
     with pytest.raises(ConfigError, match="unknown"):
         make_estimator("nonexistent", cap)
+
+
+def test_sfm_points_become_rays_that_reach_them(exact_capture):
+    """Video captures supervise depth at SfM points: each point seen by a train frame becomes a
+    pixel ray whose z-depth target puts the ray's point at that pixel's line of sight."""
+    from drawer_lib.sdf.rays import RayBank
+
+    cap = load_capture(exact_capture[0], check_files=False)
+    c = cap.frames[cap.train[0]].c2w[:3, 3]
+    fwd = cap.frames[cap.train[0]].c2w[:3, 2]
+    X = c + 1.5 * fwd + np.random.default_rng(0).normal(scale=0.2, size=(50, 3))
+    bank = RayBank(cap, cap.train, False, None, False, False, X)
+    o, d, z = bank.sample_sfm(200, torch.Generator().manual_seed(0))
+    P = (o + d * z[:, None]).numpy()
+    dist = np.min(np.linalg.norm(P[:, None] - X[None], axis=-1), axis=1)
+    # pixel quantisation: the ray goes through the pixel centre, so within ~a pixel's footprint
+    pix = 1.5 * 1.5 / cap.intrinsics.fx
+    assert np.all(dist < 1.5 * pix), dist.max()
