@@ -64,7 +64,7 @@ def bench_encoding(n=24_576):
     fb = grids["torch"](x, with_grad=True)[0]
     print(f"encoding fwd+bwd ({n} points, {e.levels} levels, with d/dx): numba {1000 * out['numba']:.1f} ms, "
           f"torch {1000 * out['torch']:.1f} ms -> {out['torch'] / out['numba']:.1f}x; max |diff| "
-          f"{float((fa - fb).abs().max()):.2e}")
+          f"{float((fa - fb).detach().abs().max()):.2e}")
 
 
 def bench_train_step(cap, manifest):

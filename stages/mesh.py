@@ -25,10 +25,10 @@ from drawer_lib.sdf.io import load_field
 def main(cfg: DictConfig) -> None:
     scene, _ = scene_of(cfg)
     mesh_cfg = to_typed(MeshConfig, cfg.mesh, "mesh")
-    cap_dir = geometry_dir(cfg, scene, "capture")
+    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
     manifest = read_manifest(cap_dir / "manifest.json")
     cap = load_capture(cap_dir, check_files=False)
-    field = load_field(geometry_dir(cfg, scene, "sdf") / "field.pt")
+    field = load_field(geometry_dir(cfg, scene, "sdf", output=False) / "field.pt")
     with stage_run("mesh", geometry_dir(cfg, scene, "mesh"), seed=cfg.seed) as run:
         run.metrics.update(run_mesh(mesh_cfg, field, cap, manifest, run, run.dir))
 

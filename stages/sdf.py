@@ -25,7 +25,7 @@ from drawer_lib.sdf.pipeline import run_sdf
 def main(cfg: DictConfig) -> None:
     scene, _ = scene_of(cfg)
     sdf_cfg = to_typed(SdfConfig, cfg.sdf, "sdf")
-    cap_dir = geometry_dir(cfg, scene, "capture")
+    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
     manifest = read_manifest(cap_dir / "manifest.json")
     cap = load_capture(cap_dir)
     with stage_run("sdf", geometry_dir(cfg, scene, "sdf"), seed=cfg.seed) as run:

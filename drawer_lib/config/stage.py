@@ -43,11 +43,13 @@ def stage_dir(cfg, scene: str, stage: str) -> Path:
     return out_root(cfg) / scene / stage
 
 
-def geometry_dir(cfg, scene: str, stage: str) -> Path:
+def geometry_dir(cfg, scene: str, stage: str, output: bool = True) -> Path:
     """Like :func:`stage_dir`, but a geometry comparison run (``+geometry_variant=<v>``, the
     ``geometry@<scene>-<v>`` stages) keeps its ``sdf``/``mesh`` under ``<out>/<scene>/geometry/<v>/``;
-    the capture is always the scene's."""
+    the capture is always the scene's. Inputs (``output=False``) are always read from
+    ``paths.out`` (in a Hydra multirun only outputs go to the job's directory)."""
+    root = out_root(cfg) if output else Path(cfg.paths.out)
     variant = cfg.get("geometry_variant")
     if variant is None or stage == "capture":
-        return stage_dir(cfg, scene, stage)
-    return out_root(cfg) / scene / "geometry" / str(variant) / stage
+        return root / scene / stage
+    return root / scene / "geometry" / str(variant) / stage
