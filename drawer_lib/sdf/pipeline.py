@@ -69,21 +69,21 @@ def _run_tsdf(cfg, cap, manifest, run, out, probe) -> dict:
 
 def _run_neural(cfg, cap, manifest, run, out, probe) -> dict:
     n = cfg.neural
-    curve = run.curve(CURVE_COLUMNS + ["beta"])
+    curve = run.curve(CURVE_COLUMNS + ["loss", "beta"])
     last_probe: dict[str, float] = {}
 
-    def on_eval(model: NeuralSDF, step: int, train_s: float) -> None:
+    def on_eval(model: NeuralSDF, step: int, train_s: float, losses: dict) -> None:
         beta = final_beta(n, step)
         r = probe(model.field.sdf, model.lo.numpy(), model.hi.numpy(),
                   lambda o, d: model.render_depth(o, d, beta)) if probe is not None else {}
-        curve.log(step, wall_s=train_s, beta=beta, **_finite(r))
+        curve.log(step, wall_s=train_s, beta=beta, loss=losses.get("total"), **_finite(r))
         last_probe.clear()
         last_probe.update(r)
         if r and np.isfinite(r["chamfer_l1"]):
             run.progress_write(f"step {step}: {train_s:.0f} s, chamfer {1000 * r['chamfer_l1']:.2f} mm, "
                                f"F@2cm {r['fscore_2cm']:.3f}, test depth {1000 * r['test_depth_l1']:.1f} mm")
 
-    res = train_neural_sdf(cap, manifest, n, run.seed, run.progress, on_eval if probe is not None else None)
+    res = train_neural_sdf(cap, manifest, n, run.seed, run.progress, on_eval)
     for k, why in res.priors.skipped.items():
         run.skip(k, why)
     info = {"method": "neural", "box_how": res.box_how, "steps": res.steps}

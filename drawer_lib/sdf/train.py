@@ -159,8 +159,8 @@ def calibrate_bank(bank: RayBank, cfg: NeuralConfig, progress: Callable) -> Mono
 
 def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: int,
                      progress: Callable = lambda it, **kw: it,
-                     on_eval: Callable[[NeuralSDF, int, float], None] | None = None) -> TrainResult:
-    """Fit a neural SDF to the train frames of ``cap``. ``on_eval(model, step, train_s)`` is
+                     on_eval: Callable[[NeuralSDF, int, float, dict], None] | None = None) -> TrainResult:
+    """Fit a neural SDF to the train frames of ``cap``. ``on_eval(model, step, train_s, losses)`` is
     called every ``cfg.eval_every`` steps and at the end, outside the training clock."""
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
@@ -232,14 +232,14 @@ def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: 
         train_s += time.perf_counter() - t0
         last = {k: float(v.detach()) for k, v in terms.items()} | {"total": float(total.detach()), "beta": beta}
         if on_eval is not None and step > 0 and step % cfg.eval_every == 0:
-            on_eval(model, step, train_s)
+            on_eval(model, step, train_s, last)
         if train_s > cfg.max_seconds:
             stopped = True
             break
     steps_done = step + 1
     model.refresh()
     if on_eval is not None:
-        on_eval(model, steps_done, train_s)
+        on_eval(model, steps_done, train_s, last)
     return TrainResult(model, lo, hi, center, typical, steps_done, train_s, stopped, how, pri, last, calib)
 
 

@@ -105,3 +105,25 @@ def test_tsdf_without_depth_and_unknown_estimator_are_config_errors(tmp_path, ex
     r = run("sdf", tmp_path, "sdf.neural.priors.estimator=marigold", "sdf.neural.priors.depth=mono")
     assert r.returncode == 2 and "marigold" in r.stderr and "not available" in r.stderr
     assert not (tmp_path / "out" / "kitchen_tiny" / "sdf").exists()
+
+
+def test_without_ground_truth_the_curve_has_time_and_loss_and_metrics_are_skipped(tmp_path, exact_capture):
+    cap = tmp_path / "out" / "kitchen_tiny" / "capture"
+    shutil.copytree(exact_capture[0], cap)
+    shutil.rmtree(cap / "gt")
+    man = json.loads((cap / "manifest.json").read_text())
+    man["has"]["gt"] = False
+    man["lacks"]["gt"] = "test: a real capture has no ground truth"
+    man["gt_part_kinds"] = None
+    (cap / "manifest.json").write_text(json.dumps(man))
+    r = run("sdf", tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    d = tmp_path / "out" / "kitchen_tiny" / "sdf"
+    rows = read_curve(d / "curve.csv")
+    assert [int(x["step"]) for x in rows] == [8, 16]
+    assert all(x["chamfer_l1"] == "" and float(x["loss"]) > 0 and float(x["wall_s"]) > 0 for x in rows)
+    assert "capture has no gt" in json.dumps(json.loads((d / "metrics.json").read_text())["skipped"])
+    r = run("mesh", tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    mm = json.loads((tmp_path / "out" / "kitchen_tiny" / "mesh" / "metrics.json").read_text())
+    assert "chamfer_l1" not in mm and "metrics_vs_gt" in mm["skipped"] and mm["faces_out"] > 0
