@@ -92,7 +92,7 @@ def project_forward(means, quats, scales, V, fx, fy, cx, cy, width, height, near
             continue
         mid = 0.5 * (a + c)
         lam = mid + math.sqrt(max(mid * mid - det, 0.01))
-        r = math.ceil(3.0 * math.sqrt(lam))
+        r = math.ceil(3.33 * math.sqrt(lam))
         u = fx * x / z + cx
         v = fy * y / z + cy
         if not (u + r > 0 and u - r < width and v + r > 0 and v - r < height) or not r > 0:

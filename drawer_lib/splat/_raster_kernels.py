@@ -6,8 +6,9 @@ alpha = min(0.999, o exp(p)), p = -0.5 (a dx^2 + c dy^2) - b dx dy, dx = m_x - x
 contributions with p > 0 or alpha < 1/255 are skipped; compositing runs front to back and
 stops before the Gaussian that would bring the transmittance to <= 1e-4.
 
-A Gaussian reaches only the pixels whose centres lie in its bounding square (2D mean +- radius,
-radius = ceil(3 sigma) of the larger axis), so the output does not depend on the tile size.
+A Gaussian is visited only at the pixels whose centres lie in its footprint square (2D mean +-
+``reach``, outside which its alpha is below 1/255; see ``rasterize.footprint_radius``), so the
+image is the plain front-to-back definition, independent of tiles.
 
 Forward runs in parallel over tiles. Backward walks each pixel's contributors back to front (as
 3DGS does) and accumulates per-Gaussian gradients into one buffer per worker chunk (chunks own

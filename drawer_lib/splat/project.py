@@ -22,7 +22,7 @@ class Projected:
     means2d: Tensor  # [N, 2] pixels
     conics: Tensor  # [N, 3] (a, b, c) of the inverse 2D covariance
     depths: Tensor  # [N] camera z
-    radii: Tensor  # [N] int32, 0 = culled (3 sigma of the larger 2D axis, in pixels, ceil)
+    radii: Tensor  # [N] int32, 0 = culled (ceil of 3.33 sigma of the larger 2D axis, pixels)
     cov2d: Tensor | None  # [N, 2, 2] with the low-pass (None from the fused kernel)
 
 
@@ -62,7 +62,7 @@ def project_gaussians(means: Float[Tensor, "N 3"], covars: Float[Tensor, "N 3 3"
     conics = torch.stack([c / det_s, -b / det_s, a / det_s], -1)
     mid = 0.5 * (a + c)
     lam = mid + torch.sqrt((mid * mid - det_s).clamp_min(0.01))
-    radius = torch.ceil(3.0 * torch.sqrt(lam.detach()))
+    radius = torch.ceil(3.33 * torch.sqrt(lam.detach()))  # sqrt(2 ln 255) = 3.329: alpha < 1/255 beyond, at any opacity
     means2d = torch.stack([fx * pc[:, 0] / zs + cx, fy * pc[:, 1] / zs + cy], -1)
     m = means2d.detach()
     on = (m[:, 0] + radius > 0) & (m[:, 0] - radius < width) & (m[:, 1] + radius > 0) & (m[:, 1] - radius < height)

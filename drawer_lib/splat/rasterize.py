@@ -30,7 +30,7 @@ class _CompositeFn(torch.autograd.Function):
     def forward(ctx, means2d, conics, opacities, colors, depths, radii, width, height, tile, absgrad):
         dt = means2d.dtype
         m, co, op, cl, dp = (t.detach().contiguous().numpy() for t in (means2d, conics, opacities, colors, depths))
-        r = radii.detach().to(torch.int64).contiguous().numpy()
+        r = footprint_radius(conics.detach(), opacities.detach(), radii).numpy()
         order = torch.argsort(depths.detach(), stable=True).numpy().astype(np.int64)
         offsets, ids = K.bin_gaussians(m, r, order, width, height, tile)
         rgb = np.zeros((height, width, 3), m.dtype)
@@ -59,14 +59,30 @@ class _CompositeFn(torch.autograd.Function):
                 G[:, K.G_Z], None, None, None, None, None)
 
 
+def footprint_radius(conics: Tensor, opacities: Tensor, radii: Tensor) -> Tensor:
+    """Half-size (pixels, int64) of the square outside which a Gaussian's alpha is below 1/255:
+    alpha = o exp(-d^2 / 2) >= 1/255 needs the Mahalanobis distance d <= sqrt(2 ln(255 o)), and
+    that ellipse fits in a square of half-size d sqrt(lambda_max(cov2d)). 0 where ``radii`` <= 0
+    or o < 1/255. With it, no contribution the compositing rules keep is ever cut off, so the
+    image does not depend on tiles or bounding boxes."""
+    a, b, c = conics.unbind(-1)
+    mid = 0.5 * (a + c)
+    lam_min = mid - torch.sqrt((mid * mid - (a * c - b * b)).clamp_min(0.0))  # of the conic = 1 / lambda_max(cov)
+    k2 = 2.0 * torch.log((255.0 * opacities).clamp_min(1.0))
+    reach = torch.ceil(torch.sqrt(k2 / lam_min.clamp_min(1e-30)))
+    ok = (radii > 0) & (opacities >= 1.0 / 255.0) & torch.isfinite(reach) & (lam_min > 0)
+    return torch.where(ok, reach.clamp_max(1e6), torch.zeros_like(reach)).to(torch.int64).contiguous()
+
+
 def composite(means2d: Float[Tensor, "N 2"], conics: Float[Tensor, "N 3"], opacities: Float[Tensor, "N"],
               colors: Float[Tensor, "N 3"], depths: Float[Tensor, "N"], radii: Tensor, width: int, height: int,
               tile: int = 16, absgrad: Tensor | None = None) -> Composite:
     """Alpha-composite N projected Gaussians front to back into an H x W image.
 
     means2d: pixel coordinates (pixel centres at integer + 0.5); conics: (a, b, c) of the inverse
-    2D covariance [[a, b], [b, c]]; radii [N] (int, pixels): a Gaussian reaches the pixels whose
-    centres lie within +- radius of its mean on both axes, <= 0 culls; colors may exceed [0, 1]
+    2D covariance [[a, b], [b, c]]; radii [N] (int): <= 0 culls (the pixels a Gaussian reaches
+    are set by :func:`footprint_radius`, exactly those where its alpha can pass 1/255);
+    colors may exceed [0, 1]
     (no clamping here). float32 or float64 (all inputs the same dtype).
     """
     n = means2d.shape[0]

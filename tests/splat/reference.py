@@ -21,8 +21,6 @@ def composite_reference(means2d, conics, opacities, colors, depths, radii, width
             c = torch.zeros(3, dtype=means2d.dtype)
             d = torch.zeros((), dtype=means2d.dtype)
             for g in order:
-                if abs(float(means2d[g, 0]) - x) > radii[g] or abs(float(means2d[g, 1]) - y) > radii[g]:
-                    continue  # outside the Gaussian's bounding square
                 dx, dy = means2d[g, 0] - x, means2d[g, 1] - y
                 p = -0.5 * (conics[g, 0] * dx * dx + conics[g, 2] * dy * dy) - conics[g, 1] * dx * dy
                 if p > 0:

@@ -178,3 +178,27 @@ def test_bad_shapes_are_named():
         composite(xs[0], xs[1][:, :2], *xs[2:], radii, W, H)
     with pytest.raises(TypeError, match="dtype"):
         composite(xs[0], xs[1], xs[2].float(), *xs[3:], radii, W, H)
+
+
+def test_gsplat_backend_refuses_without_cuda():
+    from drawer_lib.errors import ConfigError
+    from drawer_lib.splat.render import Camera, Gaussians, render
+
+    if torch.cuda.is_available():
+        pytest.skip("CUDA present: covered by test_gsplat_backend_matches_cpu")
+    means, quats, scales, opac, _ = random_scene(5, torch.float32)
+    g = Gaussians(means, quats, scales, opac, torch.zeros(5, 1, 3))
+    with pytest.raises(ConfigError, match="CUDA"):
+        render(g, Camera(torch.eye(4), (20.0, 20.0, 12.0, 9.0), W, H), 0, backend="gsplat")
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="the gsplat backend needs CUDA")
+def test_gsplat_backend_matches_cpu():
+    from drawer_lib.splat.render import Camera, Gaussians, render
+
+    means, quats, scales, opac, _ = random_scene(200, torch.float32)
+    sh = torch.rand(200, 16, 3) - 0.5
+    g = Gaussians(means, quats, scales, opac, sh)
+    cam = Camera(torch.eye(4), (20.0, 20.0, 12.0, 9.0), W, H)
+    a, b = render(g, cam, 3), render(g, cam, 3, backend="gsplat")
+    torch.testing.assert_close(b.rgb.cpu(), a.rgb, rtol=1e-3, atol=1e-3)

@@ -1,0 +1,199 @@
+#!/usr/bin/env python
+"""Benchmark of the CPU Gaussian rasterizer: forward+backward time at 128x96 and 256x192 with 5k
+and 20k Gaussians, side by side in one run with gsplat's pure-PyTorch reference path.
+
+gsplat 1.5.3 installs on CPU torch (`pip install gsplat==1.5.3`, not a project dependency).
+Its `gsplat/cuda/_torch_impl.py` projection and SH run on the CPU; its pixel stage
+(`_rasterize_to_pixels`) needs a CUDA helper (`rasterize_to_indices_in_range`) and nerfacc's
+CUDA-only packed cumprod, and its `_isect_tiles` is a Python loop per Gaussian. This script
+replaces those three with short pure-PyTorch shims (vectorised over the Gaussians of a tile;
+same termination rule) and times projection + SH + compositing, forward and backward.
+
+    python scripts/bench_splat.py [--repeat 7] [--sizes 128x96 256x192] [--counts 5000 20000]
+"""
+
+import argparse
+import math
+import sys
+import time
+import types
+
+import numpy as np
+import torch
+
+from drawer_lib.splat.render import Camera, Gaussians, render
+
+SH_DEGREE = 3
+
+
+def scene(n: int, seed: int = 0) -> list[torch.Tensor]:
+    """Gaussians filling the view frustum at 2-5 m, sizes 5 mm - 5 cm, random orientation."""
+    g = torch.Generator().manual_seed(seed)
+    z = torch.rand(n, generator=g) * 3 + 2
+    x = (torch.rand(n, generator=g) * 2 - 1) * z * 0.6
+    y = (torch.rand(n, generator=g) * 2 - 1) * z * 0.45
+    means = torch.stack([x, y, z], -1)
+    quats = torch.randn(n, 4, generator=g)
+    scales = torch.exp(torch.rand(n, 3, generator=g) * math.log(10) + math.log(0.005))
+    opac = torch.rand(n, generator=g) * 0.8 + 0.1
+    sh = torch.randn(n, 16, 3, generator=g) * 0.2
+    return [means, quats, scales, opac, sh]
+
+
+# --- pure-PyTorch shims for gsplat's CUDA-only pieces ------------------------------------------
+
+def _render_weight_from_alpha(alphas, ray_indices, n_rays):
+    """nerfacc's packed exclusive cumprod: weights = alpha * prod_{earlier on the ray} (1 - alpha)."""
+    log1m = torch.log1p(-alphas.double())  # float64: the running sum spans every ray of the image
+    cs = torch.cumsum(log1m, 0)
+    start = torch.ones_like(ray_indices, dtype=torch.bool)
+    start[1:] = ray_indices[1:] != ray_indices[:-1]
+    seg = torch.cumsum(start.long(), 0) - 1
+    base = (cs - log1m)[start]  # cumulative sum before each segment
+    trans = torch.exp(cs - log1m - base[seg]).to(alphas.dtype)
+    return alphas * trans, trans
+
+
+def _accumulate_along_rays(weights, values, ray_indices, n_rays):
+    v = weights[:, None] if values is None else weights[:, None] * values
+    return torch.zeros(n_rays, v.shape[1], dtype=v.dtype).index_add(0, ray_indices, v)
+
+
+@torch.no_grad()
+def _rasterize_to_indices_in_range(range_start, range_end, transmittances, means2d, conics, opacities, image_width,
+                                   image_height, tile_size, isect_offsets, flatten_ids):
+    """(gaussian ids, pixel ids, image ids) of the contributions of list batches
+    [range_start, range_end) of every tile (one image), ordered by pixel then depth."""
+    N = means2d.shape[-2]
+    m, co, op = means2d.reshape(-1, 2), conics.reshape(-1, 3), opacities.reshape(-1)
+    offs = torch.cat([isect_offsets.flatten(), torch.tensor([len(flatten_ids)])]).tolist()
+    th, tw = isect_offsets.shape[-2:]
+    block = tile_size * tile_size
+    out_g, out_p = [], []
+    for t in range(th * tw):
+        a = offs[t] + range_start * block
+        b = min(offs[t] + range_end * block, offs[t + 1])
+        if a >= b:
+            continue
+        gid = flatten_ids[a:b].long() % N
+        ty, tx = divmod(t, tw)
+        ys = torch.arange(ty * tile_size, min((ty + 1) * tile_size, image_height))
+        xs = torch.arange(tx * tile_size, min((tx + 1) * tile_size, image_width))
+        py, px = torch.meshgrid(ys, xs, indexing="ij")
+        pix = (py * image_width + px).reshape(-1)
+        d = torch.stack([px.reshape(-1) + 0.5, py.reshape(-1) + 0.5], -1)[:, None] - m[gid][None]  # [P, G, 2]
+        c = co[gid][None]
+        sig = 0.5 * (c[..., 0] * d[..., 0] ** 2 + c[..., 2] * d[..., 1] ** 2) + c[..., 1] * d[..., 0] * d[..., 1]
+        alpha = torch.clamp_max(op[gid][None] * torch.exp(-sig), 0.999)
+        ok = (sig >= 0) & (alpha >= 1.0 / 255.0)
+        T = transmittances.reshape(-1)[pix][:, None] * torch.cumprod(1 - alpha * ok, 1)
+        keep = ok & (T > 1e-4)
+        pi, gi = torch.nonzero(keep, as_tuple=True)
+        out_g.append(gid[gi])
+        out_p.append(pix[pi])
+    if not out_g:
+        e = torch.zeros(0, dtype=torch.long)
+        return e, e, e
+    g, p = torch.cat(out_g), torch.cat(out_p)
+    return g, p, torch.zeros_like(g)
+
+
+def _isect_tiles(means2d, radii, depths, tile_size, tile_width, tile_height):
+    """Vectorised replacement of gsplat's per-Gaussian Python loop: (flatten ids, offsets)."""
+    m, r = means2d[0], radii[0].float()
+    lo = torch.floor((m - r) / tile_size).clamp_min(0).long()
+    hi = torch.ceil((m + r) / tile_size).long()
+    hi[:, 0] = hi[:, 0].clamp(max=tile_width)
+    hi[:, 1] = hi[:, 1].clamp(max=tile_height)
+    vis = (radii[0] > 0).all(-1) & (hi > lo).all(-1)
+    ids = torch.nonzero(vis)[:, 0]
+    order = ids[torch.argsort(depths[0, ids], stable=True)]
+    tiles, gs = [], []
+    for y in range(tile_height):
+        for x in range(tile_width):
+            sel = order[(lo[order, 0] <= x) & (hi[order, 0] > x) & (lo[order, 1] <= y) & (hi[order, 1] > y)]
+            tiles.append(len(sel))
+            gs.append(sel)
+    counts = torch.tensor(tiles)
+    offsets = (torch.cumsum(counts, 0) - counts).reshape(1, tile_height, tile_width).int()
+    return torch.cat(gs).int(), offsets
+
+
+def gsplat_reference(params, cam: Camera, tile: int = 16):
+    import gsplat.cuda._torch_impl as T
+    import gsplat.cuda._wrapper as Wr
+
+    if "nerfacc" not in sys.modules:  # the CPU shim of nerfacc's two packed ops
+        mod = types.ModuleType("nerfacc")
+        mod.render_weight_from_alpha = _render_weight_from_alpha
+        mod.accumulate_along_rays = _accumulate_along_rays
+        sys.modules["nerfacc"] = mod
+    Wr.rasterize_to_indices_in_range = _rasterize_to_indices_in_range
+    means, quats, scales, opac, sh = params
+    fx, fy, cx, cy = cam.K
+    Ks = torch.tensor([[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]], dtype=means.dtype)
+    covars, _ = T._quat_scale_to_covar_preci(quats, scales, compute_covar=True, compute_preci=False, triu=False)
+    radii, means2d, depths, conics, _ = T._fully_fused_projection(means, covars, cam.viewmat[None], Ks, cam.width,
+                                                                  cam.height, eps2d=0.3)
+    dirs = means[None] - cam.center[None, None]
+    colors = torch.clamp_min(T._spherical_harmonics(SH_DEGREE, dirs, sh[None]) + 0.5, 0.0)
+    tw, th = math.ceil(cam.width / tile), math.ceil(cam.height / tile)
+    flat, offsets = _isect_tiles(means2d.detach(), radii, depths.detach(), tile, tw, th)
+    rgb, alpha = T._rasterize_to_pixels(means2d, conics, colors, opac[None].expand(1, -1), cam.width, cam.height, tile,
+                                        offsets, flat)
+    return rgb[0], alpha[0, ..., 0]
+
+
+def timeit(fn, repeat):
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts[min(2, repeat - 1):]))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--sizes", nargs="+", default=["128x96", "256x192"])
+    ap.add_argument("--counts", nargs="+", type=int, default=[5000, 20000])
+    ap.add_argument("--no-reference", action="store_true", help="skip gsplat's reference path")
+    a = ap.parse_args()
+    torch.set_num_threads(2)
+    try:
+        import gsplat  # noqa: F401
+        have_ref = not a.no_reference
+    except ImportError:
+        have_ref = False
+        print("gsplat not installed (pip install gsplat==1.5.3): reference column skipped")
+    print(f"{'size':>8} {'N':>6} | {'ours fwd':>9} {'ours f+b':>9} | {'gsplat-torch f+b':>16} | {'speed-up':>8} | "
+          f"{'max |rgb diff|':>14}")
+    for size in a.sizes:
+        W, H = map(int, size.split("x"))
+        cam = Camera(torch.eye(4), (0.8 * W, 0.8 * W, W / 2, H / 2), W, H)
+        for n in a.counts:
+            params = [t.clone().requires_grad_(True) for t in scene(n)]
+
+            def ours(backward=True):
+                out = render(Gaussians(*params), cam, SH_DEGREE)
+                if backward:
+                    (out.rgb.sum() + out.alpha.sum()).backward()
+                return out
+
+            t_f = timeit(lambda: ours(False), a.repeat)
+            t_fb = timeit(ours, a.repeat)
+            row = f"{size:>8} {n:>6} | {1000 * t_f:8.1f}  {1000 * t_fb:8.1f}  |"
+            if have_ref:
+                def ref():
+                    rgb, alpha = gsplat_reference(params, cam)
+                    (rgb.sum() + alpha.sum()).backward()
+                t_r = timeit(ref, max(3, a.repeat // 2))
+                with torch.no_grad():
+                    diff = float((gsplat_reference(params, cam)[0] - ours(False).rgb).abs().max())
+                row += f" {1000 * t_r:15.1f}  | {t_r / t_fb:7.1f}x | {diff:14.2e}"
+            print(row + "   (ms)", flush=True)
+
+
+if __name__ == "__main__":
+    main()
