@@ -22,7 +22,9 @@ IGNORE = shutil.ignore_patterns(".venv", "out", "multirun", "outputs", ".git", "
 # the whole DAG on the tiny scene, with the geometry stages shrunk to seconds
 FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.steps=8", "sdf.neural.eval_every=4",
                "sdf.neural.sampling.groups=2", "sdf.neural.sampling.rays_per_group=32", "mesh.cell=0.04",
-               "mesh.eval_points=5000"]
+               "mesh.eval_points=5000", "appearance.steps=4", "appearance.eval_every=2", "appearance.max_faces=3000",
+               "appearance.texture_cell=0.05", "appearance.strategy.enabled=false",
+               "appearance_variants=[textured_mesh,movable_gs_ste]"]
 
 
 @pytest.fixture(scope="module")
@@ -74,6 +76,9 @@ def test_repro_builds_capture_then_does_nothing(repo):
         assert (d / "out" / "kitchen_tiny" / sub).exists(), sub
     table = json.loads((d / "reports" / "geometry" / "table.json").read_text())
     assert set(table["kitchen_tiny"]) == {"neural (selected)", "tsdf"}
+    abl = json.loads((d / "reports" / "ablation" / "table.json").read_text())
+    assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
+    assert (d / "out" / "kitchen_tiny" / "appearance" / "movable_gs_ste" / "model" / "gaussians.ply").exists()
 
 
 def test_stage_reads_params_yaml(repo):

@@ -33,7 +33,9 @@ def clip_through(x: Tensor, clipped: Tensor, mode: str) -> Tensor:
     """The one place where a parameter meets its bound. ``ste``: value ``clipped``, gradient of
     ``x`` (identity); ``hard``: ``clipped`` with its own gradient; ``free``: ``x``."""
     if mode == "ste":
-        return x + (clipped - x).detach()
+        # written as c + (x - sg(x)) rather than x + sg(c - x): the forward value is then exactly
+        # c in floating point, however far x has wandered outside the bound
+        return clipped.detach() + (x - x.detach())
     if mode == "hard":
         return clipped
     if mode == "free":
@@ -247,12 +249,31 @@ def anchored_gaussians(p: AnchoredParams, frames: FaceFrames, bounds: AnchorBoun
     return Anchored(g, pos2d, e, s, phi_c)
 
 
+def distance_to_triangle_2d(p: Tensor, tri: Tensor) -> Tensor:
+    """Euclidean distance [N] from 2D points [N, 2] to filled triangles [N, 3, 2] (0 inside);
+    edge functions and segment distances, well conditioned even for sliver triangles."""
+    p, tri = p.double(), tri.double()
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    cross = lambda u, v: u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]  # noqa: E731
+    orient = torch.sign(cross(b - a, c - a))
+    inside = ((orient * cross(b - a, p - a) >= 0) & (orient * cross(c - b, p - b) >= 0)
+              & (orient * cross(a - c, p - c) >= 0))
+
+    def seg(u, v):
+        d = v - u
+        t = (((p - u) * d).sum(-1) / (d * d).sum(-1).clamp_min(1e-300)).clamp(0, 1)
+        return (p - (u + t[:, None] * d)).norm(dim=-1)
+
+    dist = torch.minimum(torch.minimum(seg(a, b), seg(b, c)), seg(c, a))
+    return torch.where(inside, torch.zeros_like(dist), dist)
+
+
 def check_bounds(a: Anchored, p: AnchoredParams, frames: FaceFrames, bounds: AnchorBounds, tol: float = 1e-5) -> None:
     """Raise AssertionError naming the first Gaussian outside its face bounds."""
     f = p.face
     R = frames.radius[f]
     tri = frames.tri2d[f]
-    inside = (barycentric_clip(a.pos2d, tri) - a.pos2d).norm(dim=-1) <= tol * R
+    inside = distance_to_triangle_2d(a.pos2d, tri) <= tol * R.double() + 1e-7
     ok_e = a.elevate.abs() <= bounds.elevate_coef * R * (1 + tol)
     cap = bounds.upper_scale * torch.stack([R, R, bounds.flat_coef * R], -1)
     ok_s = (a.scales <= cap * (1 + tol)).all(-1)

@@ -18,6 +18,7 @@ from drawer_lib.config.typed import to_tree, to_typed
 from drawer_lib.errors import ConfigError
 from drawer_lib.mesh.config import MeshConfig
 from drawer_lib.sdf.config import SdfConfig
+from drawer_lib.splat.config import AppearanceConfig
 
 SCENES = sorted(p.stem for p in (CONF / "scene").glob("*.yaml"))
 VARIANTS = {g: sorted(p.stem for p in (CONF / "capture" / g).glob("*.yaml")) for g in ("depth", "mono", "detections")}
@@ -76,6 +77,22 @@ def test_geometry_variant_under_dvc_equals_interactive(variant, monkeypatch):
     sdf = to_typed(SdfConfig, a.sdf, "sdf")
     assert to_tree(sdf) == OmegaConf.to_container(a.sdf)  # every key known to the schema, none missing
     assert sdf.method == ("tsdf" if variant == "tsdf" else "neural")
+
+
+@pytest.mark.parametrize("variant", ["textured_mesh", "static_gs", "movable_gs", "movable_gs_ste", "free_gs"])
+def test_appearance_variant_under_dvc_equals_interactive_and_keeps_params_overrides(variant, monkeypatch):
+    """`appearance@<scene>-<v>` runs `-cn dvc_stage appearance_variant=<v>`: the variant's few
+    keys merged over params.yaml's `appearance`, so a `-S appearance.steps=...` still applies."""
+    monkeypatch.chdir(ROOT)
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        a = compose(config_name="config", overrides=["scene=kitchen_tiny", f"appearance_variant={variant}"])
+        b = compose(config_name="dvc_stage", overrides=["scene=kitchen_tiny", f"appearance_variant={variant}"])
+        c = compose(config_name="dvc_stage", overrides=["scene=kitchen_tiny", f"appearance_variant={variant}",
+                                                        "appearance.steps=7"])
+    assert OmegaConf.to_container(a.appearance) == OmegaConf.to_container(b.appearance)
+    app = to_typed(AppearanceConfig, a.appearance, "appearance")
+    assert to_tree(app) == OmegaConf.to_container(a.appearance)
+    assert app.variant == variant and c.appearance.steps == 7
 
 
 def test_mesh_config_converts_strictly():

@@ -167,3 +167,12 @@ def test_ply_round_trip_in_the_inria_layout(tmp_path):
     p = init_anchored(fr, torch.rand(3, 3, dtype=torch.float64))
     write_face_binding(tmp_path / "binding.npz", p.face, fr.face_ids, p.means_2d, p.elevate)
     assert np.load(tmp_path / "binding.npz")["mesh_face"].tolist() == [0, 1, 2]
+
+
+def test_ste_forward_value_is_exactly_the_clip_far_outside_the_bound():
+    x = torch.tensor([1e6, -3e7, 0.25], dtype=torch.float32, requires_grad=True)
+    c = x.clamp(0.0, 1e-3)
+    y = clip_through(x, c, "ste")
+    assert torch.equal(y, c)
+    y.sum().backward()
+    assert x.grad.tolist() == [1.0, 1.0, 1.0]

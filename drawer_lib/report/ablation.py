@@ -1,0 +1,63 @@
+"""The appearance ablation (paper Table 3): variants side by side, and test PSNR against time."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from drawer_lib.report.geometry_table import _read_curve
+
+PAPER = {"textured_mesh": (19.71, 0.785, 0.323), "static_gs": (25.87, 0.889, 0.276),
+         "movable_gs": (26.49, 0.896, 0.193), "movable_gs_ste": (27.80, 0.912, 0.159)}
+
+
+def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
+    rows: dict = {}
+    for s in scenes:
+        for v in variants:
+            d = out / s / "appearance" / v
+            if (d / "metrics.json").is_file():
+                rows.setdefault(s, {})[v] = {"metrics": json.loads((d / "metrics.json").read_text()),
+                                            "curve": _read_curve(d / "curve.csv")}
+    return rows
+
+
+def table(rows: dict, variants: list[str]) -> tuple[str, dict]:
+    lines = ["| scene | variant | PSNR ↑ | SSIM ↑ | LPIPS ↓ | Gaussians | in bounds | training (s) | paper PSNR/SSIM/LPIPS |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    js: dict = {}
+    for s, vs in rows.items():
+        for v in variants:
+            if v not in vs:
+                continue
+            m = vs[v]["metrics"]
+            paper = "/".join(f"{x:g}" for x in PAPER[v]) if v in PAPER else "–"
+            inb = {True: "yes", False: "no"}.get(m.get("within_face_bounds"), "–")
+            lines.append(f"| {s} | {v} | {m['psnr']:.2f} | {m['ssim']:.3f} | {m['lpips']:.3f} | "
+                         f"{m.get('n_gaussians', '–')} | {inb} | {m.get('train_s', float('nan')):.1f} | {paper} |")
+            js.setdefault(s, {})[v] = {k: m.get(k) for k in ("psnr", "ssim", "lpips", "n_gaussians", "train_s",
+                                                              "within_face_bounds")}
+    return "\n".join(lines) + "\n", js
+
+
+def plot(rows: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for s, vs in rows.items():
+        for v, d in vs.items():
+            pts = [c for c in d["curve"] if np.isfinite(c.get("test_psnr", np.nan))]
+            if not pts:
+                continue
+            label = v if len(rows) == 1 else f"{s}: {v}"
+            style = dict(marker="o", ms=3) if len(pts) > 1 else dict(marker="*", ms=12, ls="none")
+            ax.plot([c["wall_s"] for c in pts], [c["test_psnr"] for c in pts], label=label, **style)
+    ax.set(xlabel="training time (s)", ylabel="test PSNR (dB)", title="appearance ablation: test PSNR against time")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,79 @@
+"""What the ``appearance`` stage does: one variant of the ablation on one scene."""
+
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+
+from drawer_lib.errors import InputError
+from drawer_lib.io.capture import Capture
+from drawer_lib.io.images import write_rgb
+from drawer_lib.runner import StageRun
+from drawer_lib.splat.anchored import anchored_gaussians
+from drawer_lib.splat.config import AppearanceConfig
+from drawer_lib.splat.ply import write_face_binding, write_gaussian_ply
+from drawer_lib.splat.train import (EvalResult, bounds_report, evaluate_images, prepare, render_test, textured_mesh,
+                                    train_gaussians)
+
+
+def _write_renders(out: Path, cap: Capture, res: EvalResult) -> None:
+    d = out / "renders"
+    d.mkdir()
+    for i, img in zip(cap.test, res.renders):
+        write_rgb(d / f"{cap.frames[i].stem}.png", (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
+
+
+def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: StageRun, out: Path,
+                   field_path: Path | None = None) -> dict:
+    if not mesh_path.is_file():
+        raise InputError(f"{mesh_path}: mesh is missing (run the mesh stage first)")
+    mesh = trimesh.load(mesh_path, process=False)
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise InputError(f"{mesh_path}: not a triangle mesh with faces")
+    torch.set_num_threads(max(torch.get_num_threads(), 1))
+    t0 = time.perf_counter()
+    sc = prepare(cap, mesh, cfg)
+    prep_s = time.perf_counter() - t0
+    m: dict = {"variant": cfg.variant, "mesh_faces": len(sc.mesh.faces), "prepare_s": round(prep_s, 3)}
+    model = out / "model"
+    model.mkdir()
+    curve = run.curve(["test_psnr", "n_gaussians"])
+    if cfg.variant == "textured_mesh":
+        field = None
+        if cfg.texture_source == "sdf":
+            from drawer_lib.sdf.io import load_field
+
+            lf = load_field(field_path)
+            if lf.field is None:
+                raise InputError(f"{field_path}: a {lf.kind} field has no colour; set appearance.texture_source: images")
+            field = lf.field
+        res, info, colored = textured_mesh(cap, sc, cfg, field)
+        colored.export(model / "textured_mesh.ply")
+        m.update(info)
+        m["train_s"] = info["bake_s"]
+        curve.log(0, wall_s=info["bake_s"], test_psnr=res.psnr)  # one point, like the TSDF's
+        run.skip("gaussians", "textured_mesh renders the mesh with baked colours; no Gaussians")
+    else:
+
+        def on_eval(step, train_s, p, frames):
+            pred = render_test(p, frames, cfg, sc)
+            r = evaluate_images(pred, sc.test_rgb, with_lpips=False)
+            curve.log(step, wall_s=train_s, test_psnr=r.psnr, n_gaussians=float(p.face.shape[0]))
+            run.progress_write(f"step {step}: {train_s:.0f} s, test PSNR {r.psnr:.2f} dB, {p.face.shape[0]} Gaussians")
+
+        st = train_gaussians(cap, sc, cfg, run.seed, run.progress, on_eval)
+        res = evaluate_images(render_test(st.params, st.frames, cfg, sc), sc.test_rgb)
+        violation = bounds_report(st.params, st.frames, cfg)
+        if cfg.clip != "free" and violation is not None:
+            raise AssertionError(f"appearance {cfg.variant}: {violation}")
+        a = anchored_gaussians(st.params, st.frames, cfg.bounds, cfg.clip)
+        write_gaussian_ply(model / "gaussians.ply", a.gaussians)
+        write_face_binding(model / "binding.npz", st.params.face, st.frames.face_ids, a.pos2d, a.elevate)
+        sc.mesh.export(model / "anchor_mesh.ply")
+        m.update({"n_gaussians": int(st.params.face.shape[0]), "steps": st.steps, "train_s": round(st.train_s, 3),
+                  "stopped_by_time": st.stopped_by_time, "within_face_bounds": violation is None, **st.counts})
+    _write_renders(out, cap, res)
+    m.update({"psnr": res.psnr, "ssim": res.ssim, "lpips": res.lpips})
+    return m

@@ -1,0 +1,235 @@
+"""Training of mesh-anchored Gaussians (and the textured-mesh baseline) on a capture."""
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import trimesh
+
+from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.geometry.raycast import Raycaster
+from drawer_lib.io.capture import Capture
+from drawer_lib.metrics.image import psnr, ssim
+from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, check_bounds, face_frames, init_anchored
+from drawer_lib.splat.config import AppearanceConfig
+from drawer_lib.splat.mesh_color import (colored_mesh_at_resolution, face_colors, mesh_depths, render_face_colored,
+                                         to_tensor_images)
+from drawer_lib.splat.render import Camera, RenderOutput, render
+from drawer_lib.splat.strategy import MeshAnchoredStrategy
+
+EVAL_BG = np.array([0.149, 0.1647, 0.2157])  # DRAWER's evaluation background
+
+
+def decimate(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
+    if len(mesh.faces) <= max_faces:
+        return mesh
+    from drawer_lib.mesh.clean import CleanConfig, clean_mesh
+
+    out, _ = clean_mesh(mesh, CleanConfig(min_component_diag=0.0, target_faces=max_faces))
+    return out
+
+
+def cameras(cap: Capture, frames: list[int]) -> list[Camera]:
+    it = cap.intrinsics
+    return [Camera(torch.tensor(cap.frames[i].w2c, dtype=torch.float32), (it.fx, it.fy, it.cx, it.cy), it.width,
+                   it.height) for i in frames]
+
+
+@dataclass
+class Scene:
+    """What training and evaluation need, prepared once."""
+
+    mesh: trimesh.Trimesh
+    rc: Raycaster
+    train_cams: list[Camera]
+    test_cams: list[Camera]
+    train_rgb: torch.Tensor  # [C, H, W, 3]
+    test_rgb: torch.Tensor
+    train_mesh_depth: torch.Tensor  # [C, H, W]
+    test_mesh_depth: np.ndarray
+
+
+def prepare(cap: Capture, mesh: trimesh.Trimesh, cfg: AppearanceConfig) -> Scene:
+    if len(mesh.faces) == 0:
+        raise InputError("appearance: the mesh is empty")
+    if not cap.test:
+        raise InputError(f"{cap.root / 'transforms.json'}: no test frames to evaluate on")
+    m = decimate(mesh, cfg.max_faces)
+    rc = Raycaster(np.asarray(m.vertices), np.asarray(m.faces))
+    it = cap.intrinsics
+    w_tr = np.stack([cap.frames[i].w2c for i in cap.train])
+    w_te = np.stack([cap.frames[i].w2c for i in cap.test])
+    return Scene(m, rc, cameras(cap, cap.train), cameras(cap, cap.test),
+                 to_tensor_images(np.stack([cap.image(i) for i in cap.train])),
+                 to_tensor_images(np.stack([cap.image(i) for i in cap.test])),
+                 torch.from_numpy(mesh_depths(rc, it, w_tr)), mesh_depths(rc, it, w_te))
+
+
+@dataclass
+class EvalResult:
+    psnr: float
+    ssim: float
+    lpips: float
+    renders: np.ndarray  # [T, H, W, 3] in [0, 1]
+
+
+def evaluate_images(pred: torch.Tensor, gt: torch.Tensor, with_lpips: bool = True) -> EvalResult:
+    """Mean PSNR / SSIM / LPIPS (DESIGN §6) of predictions [T, H, W, 3] against GT."""
+    from drawer_lib.metrics.lpips import lpips
+
+    x, y = pred.permute(0, 3, 1, 2).clamp(0, 1), gt.permute(0, 3, 1, 2)
+    lp = float(lpips(x, y).mean()) if with_lpips else float("nan")
+    return EvalResult(float(psnr(x, y).mean()), float(ssim(x, y).mean()), lp, pred.numpy())
+
+
+@torch.no_grad()
+def field_colors(field, points: np.ndarray, normals: np.ndarray, chunk: int = 65536) -> np.ndarray:
+    """Colour [F, 3] of a neural SDF's colour head at surface points seen along -normal."""
+    out = []
+    for x, n in zip(torch.tensor(points, dtype=torch.float32).split(chunk),
+                    torch.tensor(normals, dtype=torch.float32).split(chunk)):
+        out.append(field(x, -n, with_grad=False)[2])
+    return torch.cat(out).clamp(0, 1).numpy().astype(np.float64)
+
+
+def textured_mesh(cap: Capture, sc: Scene, cfg: AppearanceConfig, field=None) -> tuple[EvalResult, dict, trimesh.Trimesh]:
+    """The baseline: the mesh split to ``texture_cell`` resolution, one colour per face (from
+    the SDF's colour head, or from the train views), rendered (ray cast) at the test views."""
+    t0 = time.perf_counter()
+    fine = colored_mesh_at_resolution(sc.mesh, cfg.texture_cell)
+    rc = Raycaster(np.asarray(fine.vertices), np.asarray(fine.faces))
+    it = cap.intrinsics
+    cnt = np.ones(len(fine.faces))
+    if cfg.texture_source == "sdf":
+        if field is None:
+            raise InputError("appearance.texture_source = sdf needs a neural SDF field with a colour head (sdf/field.pt "
+                             "of a neural run); use texture_source: images for a TSDF")
+        cols = field_colors(field, np.asarray(fine.triangles_center), np.asarray(fine.face_normals))
+    else:
+        w_tr = np.stack([c.viewmat.numpy() for c in sc.train_cams]).astype(np.float64)
+        depth = mesh_depths(rc, it, w_tr)
+        cols, cnt = face_colors(np.asarray(fine.triangles_center), sc.train_rgb.numpy(), it, w_tr, depth)
+    bake_s = time.perf_counter() - t0
+    renders = torch.from_numpy(np.stack([render_face_colored(rc, cols, it, c.viewmat.numpy().astype(np.float64), EVAL_BG)
+                                         for c in sc.test_cams]))
+    info = {"texture_faces": len(fine.faces), "texture_cell_m": cfg.texture_cell, "texture_source": cfg.texture_source,
+            "faces_unseen": int((cnt == 0).sum()), "bake_s": round(bake_s, 3)}
+    fine.visual.face_colors = np.concatenate([(cols * 255 + 0.5).astype(np.uint8), np.full((len(cols), 1), 255, np.uint8)], 1)
+    return evaluate_images(renders, sc.test_rgb), info, fine
+
+
+@dataclass
+class TrainState:
+    params: AnchoredParams
+    frames: FaceFrames
+    steps: int
+    train_s: float
+    stopped_by_time: bool
+    counts: dict
+
+
+def _optimizer(p: AnchoredParams, cfg: AppearanceConfig) -> torch.optim.Adam:
+    lr = cfg.lr
+    rates = {"means_2d": lr.position, "elevate": lr.position, "log_scales": lr.scales, "angles": lr.angles,
+             "sh_dc": lr.sh_dc, "sh_rest": lr.sh_rest, "opacity_logit": lr.opacity}
+    groups = []
+    for name, t in p.trainable().items():
+        frozen = cfg.static and name in ("means_2d", "elevate")
+        par = torch.nn.Parameter(t.detach().clone(), requires_grad=not frozen)
+        setattr(p, name, par)
+        if not frozen:
+            groups.append({"params": [par], "lr": rates[name], "name": name})
+    return torch.optim.Adam(groups, eps=1e-15)
+
+
+def render_params(p: AnchoredParams, frames: FaceFrames, cfg: AppearanceConfig, cam: Camera, sh_degree: int,
+                  bg: torch.Tensor) -> tuple[RenderOutput, torch.Tensor]:
+    a = anchored_gaussians(p, frames, cfg.bounds, cfg.clip)
+    return render(a.gaussians, cam, sh_degree, bg, tile=cfg.tile, backend=cfg.backend), a.scales
+
+
+def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, progress: Callable = lambda it, **kw: it,
+                    on_eval: Callable[[int, float, AnchoredParams, FaceFrames], None] | None = None) -> TrainState:
+    gen = torch.Generator().manual_seed(seed)
+    torch.manual_seed(seed)
+    V = torch.tensor(np.asarray(sc.mesh.vertices), dtype=torch.float32)
+    Fc = torch.tensor(np.asarray(sc.mesh.faces), dtype=torch.long)
+    frames = face_frames(V, Fc)
+    if frames.A.shape[0] == 0:
+        raise InputError("appearance: the mesh has no face with a non-zero area")
+    it = cap.intrinsics
+    w_tr = np.stack([c.viewmat.numpy() for c in sc.train_cams]).astype(np.float64)
+    cols, _ = face_colors(frames.centroid.double().numpy(), sc.train_rgb.numpy(), it, w_tr, sc.train_mesh_depth.numpy())
+    p = init_anchored(frames, torch.tensor(cols, dtype=torch.float32), cfg.sh_degree, cfg.init_opacity)
+    opt = _optimizer(p, cfg)
+    s = cfg.strategy
+    strat = MeshAnchoredStrategy(s.refine_start, s.refine_every, s.refine_stop, s.reset_every, s.grad_thresh,
+                                 s.size_thresh, s.cull_alpha, max_gaussians=s.max_gaussians)
+    densify = s.enabled
+    w = cfg.losses
+    n_img = len(sc.train_cams)
+    size = max(it.width, it.height)
+    train_s, stopped, step = 0.0, False, 0
+    counts = {"split": 0, "dup": 0, "culled": 0}
+    for step in progress(range(cfg.steps), desc="train", total=cfg.steps):
+        t0 = time.perf_counter()
+        k = int(torch.randint(0, n_img, (1,), generator=gen))
+        bg = torch.rand(3, generator=gen)
+        deg = min(step // cfg.sh_every, cfg.sh_degree)
+        out, scales = render_params(p, frames, cfg, sc.train_cams[k], deg, bg)
+        gt = sc.train_rgb[k]
+        x, y = out.rgb.permute(2, 0, 1)[None], gt.permute(2, 0, 1)[None]
+        loss = w.l1 * (out.rgb - gt).abs().mean() + w.dssim * (1 - ssim(x, y)[0])
+        if w.alpha > 0:
+            loss = loss + w.alpha * F.relu(0.95 - out.alpha).mean()
+        if w.mesh_depth > 0:
+            md = sc.train_mesh_depth[k]
+            seen = md > 0
+            loss = loss + w.mesh_depth * (md[seen] - out.depth[seen]).abs().mean()
+        if w.aniso > 0 and step % 10 == 0:
+            s2 = scales[:, :2]
+            loss = loss + w.aniso * F.relu(s2.amax(-1) / s2.amin(-1).clamp_min(1e-12) - w.aniso_ratio).mean()
+        if not torch.isfinite(loss):
+            raise NonFiniteError(f"appearance: loss is {float(loss)} at step {step}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        if densify:
+            strat.update(out.absgrad, out.radii, size)
+        frac = min(step / max(cfg.steps - 1, 1), 1.0)
+        for g in opt.param_groups:
+            if g["name"] in ("means_2d", "elevate"):
+                g["lr"] = cfg.lr.position * (cfg.lr.position_final / cfg.lr.position) ** frac
+        opt.step()
+        if densify:
+            r = strat.step(step, p, frames, scales, opt, gen, allow_split=not cfg.static)
+            for kk in counts:
+                counts[kk] += r[kk]
+        train_s += time.perf_counter() - t0
+        if on_eval is not None and step > 0 and step % cfg.eval_every == 0:
+            on_eval(step, train_s, p, frames)
+        if train_s > cfg.max_seconds:
+            stopped = True
+            break
+    steps_done = step + 1
+    if on_eval is not None:
+        on_eval(steps_done, train_s, p, frames)
+    return TrainState(p, frames, steps_done, train_s, stopped, counts)
+
+
+@torch.no_grad()
+def render_test(p: AnchoredParams, frames: FaceFrames, cfg: AppearanceConfig, sc: Scene) -> torch.Tensor:
+    bg = torch.tensor(EVAL_BG, dtype=torch.float32)
+    return torch.stack([render_params(p, frames, cfg, c, cfg.sh_degree, bg)[0].rgb for c in sc.test_cams])
+
+
+def bounds_report(p: AnchoredParams, frames: FaceFrames, cfg: AppearanceConfig) -> str | None:
+    """None when every Gaussian is within its face bounds, else the first violation."""
+    a = anchored_gaussians(p, frames, cfg.bounds, cfg.clip)
+    try:
+        check_bounds(a, p, frames, cfg.bounds)
+    except AssertionError as e:
+        return str(e)
+    return None
