@@ -4,8 +4,6 @@
     python -m stages.geometry_table -cn dvc_stage
 """
 
-import json
-import shutil
 from pathlib import Path
 
 import hydra
@@ -13,6 +11,7 @@ from omegaconf import DictConfig
 
 from drawer_lib.errors import InputError
 from drawer_lib.report.geometry_table import collect, plot, table
+from drawer_lib.report.write import write_report
 from drawer_lib.runner import main_guard
 
 
@@ -23,15 +22,7 @@ def main(cfg: DictConfig) -> None:
     if not rows:
         raise InputError(f"geometry_table: no mesh metrics under {cfg.paths.out}/ (run the sdf and mesh stages first)")
     md, js = table(rows)
-    out = Path(cfg.paths.reports) / "geometry"
-    tmp = out.with_name(".geometry.tmp")  # written whole, then swapped in
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    (tmp / "table.md").write_text(md)
-    (tmp / "table.json").write_text(json.dumps(js, indent=2))
-    plot(rows, tmp / "curves.png")
-    shutil.rmtree(out, ignore_errors=True)
-    tmp.rename(out)
+    write_report(Path(cfg.paths.reports) / "geometry", md, js, lambda path: plot(rows, path))
     print(md)
 
 

@@ -32,3 +32,15 @@ def sensor_cfg(depth: str = "sensor", mono: str = "noisy", detections: str = "no
 def render_capture(scene: SceneConfig, cap: CaptureConfig, out: Path, name: str = "test", seed: int = 0):
     out.mkdir(parents=True, exist_ok=True)
     return build_capture(name, scene, cap, out, np.random.default_rng(seed), ROOT)
+
+
+def run_stage(module: str, tmp: Path, *args: str):
+    """``python -m stages.<module> scene=kitchen_tiny`` with outputs and reports under ``tmp``."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", f"stages.{module}", "scene=kitchen_tiny", f"paths.out={tmp / 'out'}",
+                           f"paths.reports={tmp / 'reports'}", *args], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=600)

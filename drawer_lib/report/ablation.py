@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drawer_lib.report.geometry_table import _read_curve
+from drawer_lib.report.geometry_table import read_curve
 
 PAPER = {"textured_mesh": (19.71, 0.785, 0.323), "static_gs": (25.87, 0.889, 0.276),
          "movable_gs": (26.49, 0.896, 0.193), "movable_gs_ste": (27.80, 0.912, 0.159)}
@@ -18,7 +18,7 @@ def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
             d = out / s / "appearance" / v
             if (d / "metrics.json").is_file():
                 rows.setdefault(s, {})[v] = {"metrics": json.loads((d / "metrics.json").read_text()),
-                                            "curve": _read_curve(d / "curve.csv")}
+                                            "curve": read_curve(d / "curve.csv")}
     return rows
 
 

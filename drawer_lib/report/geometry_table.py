@@ -26,7 +26,7 @@ def _read_json(p: Path) -> dict:
     return json.loads(p.read_text()) if p.is_file() else {}
 
 
-def _read_curve(p: Path) -> list[dict]:
+def read_curve(p: Path) -> list[dict]:
     if not p.is_file():
         return []
     with p.open() as f:
@@ -41,7 +41,7 @@ def collect(out: Path, scenes: list[str], selected: str, variants: list[str]) ->
             if not (d / "mesh" / "metrics.json").is_file():
                 continue
             rows.append(Row(s, name, d, _read_json(d / "sdf" / "metrics.json"), _read_json(d / "mesh" / "metrics.json"),
-                            _read_curve(d / "sdf" / "curve.csv")))
+                            read_curve(d / "sdf" / "curve.csv")))
     return rows
 
 

@@ -5,7 +5,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
@@ -42,7 +41,6 @@ def run_sdf(cfg: SdfConfig, cap: Capture, manifest: Manifest, run: StageRun, out
         probe = GeometryProbe(cap, cell=cell)
     else:
         run.skip("geometry_curve_metrics", manifest.missing("gt") or "no ground truth")
-    torch.set_num_threads(max(torch.get_num_threads(), 1))
     if cfg.method == "tsdf":
         return _run_tsdf(cfg, cap, manifest, run, out, probe)
     return _run_neural(cfg, cap, manifest, run, out, probe)

@@ -38,16 +38,48 @@ def _rotmat(qw, qx, qy, qz, R):
     R[2, 2] = 1 - 2 * (qx * qx + qy * qy)
 
 
+@njit(cache=True, inline="always")
+@no_type_check
+def _limits(fx, fy, cx, cy, width, height):
+    """Bounds of x/z and y/z where the Jacobian is taken: the image plus 30 % on each side."""
+    return (cx / fx + 0.3 * width / fx, (width - cx) / fx + 0.3 * width / fx,
+            cy / fy + 0.3 * height / fy, (height - cy) / fy + 0.3 * height / fy)
+
+
+@njit(cache=True, inline="always")
+@no_type_check
+def _cov2d(q, s, V, fx, fy, x, y, z, lim, eps2d, R, S, T):
+    """2D covariance (a, b, c) of one Gaussian (quaternion q [4], scales s [3]) at camera point
+    (x, y, z); fills R (rotation), S (3D covariance) and T = J V[:3, :3]; returns
+    (a, b, c, tx, ty, |q|) with tx, ty the clamped x/z, y/z."""
+    qn = max(math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2), 1e-12)
+    _rotmat(q[0] / qn, q[1] / qn, q[2] / qn, q[3] / qn, R)
+    for i in range(3):  # Sigma = R diag(s^2) R^T
+        for j in range(3):
+            S[i, j] = R[i, 0] * R[j, 0] * s[0] ** 2 + R[i, 1] * R[j, 1] * s[1] ** 2 + R[i, 2] * R[j, 2] * s[2] ** 2
+    tx = min(max(x / z, -lim[0]), lim[1])
+    ty = min(max(y / z, -lim[2]), lim[3])
+    for j in range(3):  # J = [[fx/z, 0, -fx tx/z], [0, fy/z, -fy ty/z]]
+        T[0, j] = fx / z * V[0, j] - fx * tx / z * V[2, j]
+        T[1, j] = fy / z * V[1, j] - fy * ty / z * V[2, j]
+    a = eps2d
+    b = 0.0
+    c = eps2d
+    for i in range(3):
+        for j in range(3):
+            a += T[0, i] * S[i, j] * T[0, j]
+            b += T[0, i] * S[i, j] * T[1, j]
+            c += T[1, i] * S[i, j] * T[1, j]
+    return a, b, c, tx, ty, qn
+
+
 @njit(parallel=True, cache=True)
 @no_type_check
 def project_forward(means, quats, scales, V, fx, fy, cx, cy, width, height, near, far, eps2d,
                     means2d, conics, depths, radii):
     """Outputs means2d [N, 2], conics [N, 3], depths [N], radii [N] (int32, 0 = culled)."""
     N = means.shape[0]
-    lxn = cx / fx + 0.3 * width / fx
-    lxp = (width - cx) / fx + 0.3 * width / fx
-    lyn = cy / fy + 0.3 * height / fy
-    lyp = (height - cy) / fy + 0.3 * height / fy
+    lim = _limits(fx, fy, cx, cy, width, height)
     for n in prange(N):
         X, Y, Z = means[n, 0], means[n, 1], means[n, 2]
         x = V[0, 0] * X + V[0, 1] * Y + V[0, 2] * Z + V[0, 3]
@@ -62,31 +94,10 @@ def project_forward(means, quats, scales, V, fx, fy, cx, cy, width, height, near
         radii[n] = 0
         if not (z > near and z < far):
             continue
-        qn = math.sqrt(quats[n, 0] ** 2 + quats[n, 1] ** 2 + quats[n, 2] ** 2 + quats[n, 3] ** 2)
-        qn = max(qn, 1e-12)
         R = np.empty((3, 3))
-        _rotmat(quats[n, 0] / qn, quats[n, 1] / qn, quats[n, 2] / qn, quats[n, 3] / qn, R)
-        # Sigma = R diag(s^2) R^T
         S = np.empty((3, 3))
-        for i in range(3):
-            for j in range(3):
-                S[i, j] = (R[i, 0] * R[j, 0] * scales[n, 0] ** 2 + R[i, 1] * R[j, 1] * scales[n, 1] ** 2
-                           + R[i, 2] * R[j, 2] * scales[n, 2] ** 2)
-        tx = min(max(x / z, -lxn), lxp)
-        ty = min(max(y / z, -lyn), lyp)
-        # T = J V[:3, :3], J = [[fx/z, 0, -fx tx/z], [0, fy/z, -fy ty/z]]
         T = np.empty((2, 3))
-        for j in range(3):
-            T[0, j] = fx / z * V[0, j] - fx * tx / z * V[2, j]
-            T[1, j] = fy / z * V[1, j] - fy * ty / z * V[2, j]
-        a = eps2d
-        b = 0.0
-        c = eps2d
-        for i in range(3):
-            for j in range(3):
-                a += T[0, i] * S[i, j] * T[0, j]
-                b += T[0, i] * S[i, j] * T[1, j]
-                c += T[1, i] * S[i, j] * T[1, j]
+        a, b, c, _, _, _ = _cov2d(quats[n], scales[n], V, fx, fy, x, y, z, lim, eps2d, R, S, T)
         det = a * c - b * b
         if not (det > 0.0) or not math.isfinite(det):
             continue
@@ -113,10 +124,8 @@ def project_backward(means, quats, scales, V, fx, fy, cx, cy, width, height, eps
                      g_means2d, g_conics, g_depths, g_means, g_quats, g_scales):
     """VJP of project_forward into g_means [N, 3], g_quats [N, 4], g_scales [N, 3]."""
     N = means.shape[0]
-    lxn = cx / fx + 0.3 * width / fx
-    lxp = (width - cx) / fx + 0.3 * width / fx
-    lyn = cy / fy + 0.3 * height / fy
-    lyp = (height - cy) / fy + 0.3 * height / fy
+    lim = _limits(fx, fy, cx, cy, width, height)
+    lxn, lxp, lyn, lyp = lim
     for n in prange(N):
         for k in range(3):
             g_means[n, k] = 0.0
@@ -131,30 +140,13 @@ def project_backward(means, quats, scales, V, fx, fy, cx, cy, width, height, eps
         gy = 0.0
         gz = g_depths[n]  # depth = z is returned for every Gaussian
         if radii[n] > 0:
-            qn = max(math.sqrt(quats[n, 0] ** 2 + quats[n, 1] ** 2 + quats[n, 2] ** 2 + quats[n, 3] ** 2), 1e-12)
-            qw, qx, qy, qz = quats[n, 0] / qn, quats[n, 1] / qn, quats[n, 2] / qn, quats[n, 3] / qn
             R = np.empty((3, 3))
-            _rotmat(qw, qx, qy, qz, R)
-            s0, s1, s2 = scales[n, 0], scales[n, 1], scales[n, 2]
             S = np.empty((3, 3))
-            for i in range(3):
-                for j in range(3):
-                    S[i, j] = R[i, 0] * R[j, 0] * s0 * s0 + R[i, 1] * R[j, 1] * s1 * s1 + R[i, 2] * R[j, 2] * s2 * s2
-            rx, ry = x / z, y / z
-            tx = min(max(rx, -lxn), lxp)
-            ty = min(max(ry, -lyn), lyp)
             T = np.empty((2, 3))
-            for j in range(3):
-                T[0, j] = fx / z * V[0, j] - fx * tx / z * V[2, j]
-                T[1, j] = fy / z * V[1, j] - fy * ty / z * V[2, j]
-            a = eps2d
-            b = 0.0
-            c = eps2d
-            for i in range(3):
-                for j in range(3):
-                    a += T[0, i] * S[i, j] * T[0, j]
-                    b += T[0, i] * S[i, j] * T[1, j]
-                    c += T[1, i] * S[i, j] * T[1, j]
+            a, b, c, tx, ty, qn = _cov2d(quats[n], scales[n], V, fx, fy, x, y, z, lim, eps2d, R, S, T)
+            qw, qx, qy, qz = quats[n, 0] / qn, quats[n, 1] / qn, quats[n, 2] / qn, quats[n, 3] / qn
+            s0, s1, s2 = scales[n, 0], scales[n, 1], scales[n, 2]
+            rx, ry = x / z, y / z
             det = a * c - b * b
             d2 = det * det
             gA, gB, gC = g_conics[n, 0], g_conics[n, 1], g_conics[n, 2]

@@ -4,7 +4,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 import trimesh
 
 from drawer_lib.errors import InputError
@@ -32,7 +31,6 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
     mesh = trimesh.load(mesh_path, process=False)
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise InputError(f"{mesh_path}: not a triangle mesh with faces")
-    torch.set_num_threads(max(torch.get_num_threads(), 1))
     t0 = time.perf_counter()
     sc = prepare(cap, mesh, cfg)
     prep_s = time.perf_counter() - t0

@@ -86,10 +86,6 @@ class MeshAnchoredStrategy:
 
     # -- row editing ----------------------------------------------------------------------------
     @staticmethod
-    def _params(p: AnchoredParams) -> dict[str, Tensor]:
-        return p.trainable()
-
-    @staticmethod
     def _edit(p: AnchoredParams, opt: torch.optim.Adam, fn, face_fn) -> None:
         """Replace every parameter by ``fn(name, rows, False)`` and its Adam moments by
         ``fn(name, moments, True)``, and ``p.face`` by ``face_fn(p.face)``."""

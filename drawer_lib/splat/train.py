@@ -166,8 +166,7 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
     p = init_anchored(frames, torch.tensor(cols, dtype=torch.float32), cfg.sh_degree, cfg.init_opacity)
     opt = _optimizer(p, cfg)
     s = cfg.strategy
-    strat = MeshAnchoredStrategy(s.refine_start, s.refine_every, s.refine_stop, s.reset_every, s.grad_thresh,
-                                 s.size_thresh, s.cull_alpha, max_gaussians=s.max_gaussians)
+    strat = MeshAnchoredStrategy(**{k: v for k, v in vars(s).items() if k != "enabled"})
     densify = s.enabled
     w = cfg.losses
     n_img = len(sc.train_cams)

@@ -3,13 +3,10 @@ the TSDF variant side by side, and bad input -> a message naming the file, exit 
 
 import csv
 import json
-import os
 import shutil
-import subprocess
-import sys
 
 import pytest
-from helpers import ROOT
+from helpers import run_stage
 
 FAST = ["sdf.neural.steps=16", "sdf.neural.eval_every=8", "sdf.neural.sampling.groups=4",
         "sdf.neural.sampling.rays_per_group=32", "sdf.neural.monocal.refine_steps=4",
@@ -17,10 +14,7 @@ FAST = ["sdf.neural.steps=16", "sdf.neural.eval_every=8", "sdf.neural.sampling.g
 
 
 def run(module, tmp, *extra):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", f"stages.{module}", "scene=kitchen_tiny", f"paths.out={tmp / 'out'}",
-                           f"paths.reports={tmp / 'reports'}", *FAST, *extra], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=600)
+    return run_stage(module, tmp, *FAST, *extra)
 
 
 @pytest.fixture(scope="module")

@@ -2,14 +2,11 @@
 bounds, the ablation table; bad input named, exit 2, no output."""
 
 import json
-import os
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from helpers import ROOT
+from helpers import run_stage
 
 from drawer_lib.splat.ply import read_gaussian_ply
 
@@ -19,10 +16,7 @@ FAST = ["appearance.steps=12", "appearance.eval_every=6", "appearance.max_faces=
 
 
 def run(module, tmp, *extra):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", f"stages.{module}", "scene=kitchen_tiny", f"paths.out={tmp / 'out'}",
-                           f"paths.reports={tmp / 'reports'}", *FAST, *extra], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=600)
+    return run_stage(module, tmp, *FAST, *extra)
 
 
 @pytest.fixture(scope="module")
