@@ -23,8 +23,9 @@ def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
 
 
 def table(rows: dict, variants: list[str]) -> tuple[str, dict]:
-    lines = ["| scene | variant | PSNR ↑ | SSIM ↑ | LPIPS ↓ | Gaussians | in bounds | training (s) | paper PSNR/SSIM/LPIPS |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| scene | variant | PSNR ↑ | SSIM ↑ | LPIPS ↓ | Gaussians | in bounds | raw param at a bound "
+             "(pos / tilt / any) | training (s) | paper PSNR/SSIM/LPIPS |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     js: dict = {}
     for s, vs in rows.items():
         for v in variants:
@@ -33,10 +34,13 @@ def table(rows: dict, variants: list[str]) -> tuple[str, dict]:
             m = vs[v]["metrics"]
             paper = "/".join(f"{x:g}" for x in PAPER[v]) if v in PAPER else "–"
             inb = {True: "yes", False: "no"}.get(m.get("within_face_bounds"), "–")
+            act = ("–" if "at_bound_any" not in m else
+                   " / ".join(f"{100 * m[f'at_bound_{k}']:.0f} %" for k in ("position", "tilt", "any")))
             lines.append(f"| {s} | {v} | {m['psnr']:.2f} | {m['ssim']:.3f} | {m['lpips']:.3f} | "
-                         f"{m.get('n_gaussians', '–')} | {inb} | {m.get('train_s', float('nan')):.1f} | {paper} |")
+                         f"{m.get('n_gaussians', '–')} | {inb} | {act} | {m.get('train_s', float('nan')):.1f} | {paper} |")
             js.setdefault(s, {})[v] = {k: m.get(k) for k in ("psnr", "ssim", "lpips", "n_gaussians", "train_s",
                                                               "within_face_bounds")}
+            js[s][v].update({k: val for k, val in m.items() if k.startswith("at_bound_")})
     return "\n".join(lines) + "\n", js
 
 

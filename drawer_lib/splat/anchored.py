@@ -282,3 +282,29 @@ def check_bounds(a: Anchored, p: AnchoredParams, frames: FaceFrames, bounds: Anc
         if not bool(ok.all()):
             i = int(torch.nonzero(~ok)[0, 0])
             raise AssertionError(f"Gaussian {i} (face {int(f[i])}) violates its {name} bound")
+
+
+@torch.no_grad()
+def bound_activity(p: AnchoredParams, frames: FaceFrames, bounds: AnchorBounds, tol: float = 1e-6) -> dict[str, float]:
+    """Fraction of Gaussians whose *raw* parameter lies on or beyond each bound (where the clip
+    is active: zero gradient under ``hard``, identity under ``ste``). Keys: ``position``
+    (outside the triangle), ``offset``, ``scale_plane`` (an in-plane axis at its cap),
+    ``scale_normal``, ``tilt`` (outside [0, cone]), ``any``."""
+    f = p.face
+    n = max(int(f.shape[0]), 1)
+    R = frames.radius[f].double()
+    out_pos = distance_to_triangle_2d(p.means_2d.detach(), frames.tri2d[f]) > tol * R
+    out_e = p.elevate.detach().double().abs() >= bounds.elevate_coef * R * (1 - tol)
+    s = torch.exp(p.log_scales.detach().double())
+    cap = bounds.upper_scale * torch.stack([R, R, bounds.flat_coef * R], -1)
+    at_cap = s >= cap * (1 - tol)
+    phi = p.angles.detach()[:, 2].double()
+    out_t = (phi < 0) | (phi > bounds.cone)
+    masks = {"position": out_pos, "offset": out_e, "scale_plane": at_cap[:, :2].any(-1), "scale_normal": at_cap[:, 2],
+             "tilt": out_t}
+    res = {k: float(v.sum()) / n for k, v in masks.items()}
+    anyv = torch.zeros_like(out_pos)
+    for v in masks.values():
+        anyv |= v
+    res["any"] = float(anyv.sum()) / n
+    return res

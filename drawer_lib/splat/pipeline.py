@@ -10,7 +10,7 @@ from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_rgb
 from drawer_lib.runner import StageRun
-from drawer_lib.splat.anchored import anchored_gaussians
+from drawer_lib.splat.anchored import anchored_gaussians, bound_activity
 from drawer_lib.splat.config import AppearanceConfig
 from drawer_lib.splat.ply import write_face_binding, write_gaussian_ply
 from drawer_lib.splat.train import (EvalResult, bounds_report, evaluate_images, prepare, render_test, textured_mesh,
@@ -72,6 +72,8 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
         sc.mesh.export(model / "anchor_mesh.ply")
         m.update({"n_gaussians": int(st.params.face.shape[0]), "steps": st.steps, "train_s": round(st.train_s, 3),
                   "stopped_by_time": st.stopped_by_time, "within_face_bounds": violation is None, **st.counts})
+        if cfg.clip != "free":  # where the clips act at the end (hard: zero gradient there; ste: identity)
+            m.update({f"at_bound_{k}": round(v, 4) for k, v in bound_activity(st.params, st.frames, cfg.bounds).items()})
     _write_renders(out, cap, res)
     m.update({"psnr": res.psnr, "ssim": res.ssim, "lpips": res.lpips})
     return m

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from drawer_lib.splat.anchored import (AnchorBounds, anchored_gaussians, barycentric_clip, check_bounds, clip_through,
+from drawer_lib.splat.anchored import (AnchorBounds, anchored_gaussians, bound_activity, barycentric_clip, check_bounds, clip_through,
                                        face_frames, init_anchored, matrix_to_quat_wxyz, subdivide_to_area)
 from drawer_lib.splat.project import quat_scale_to_covar
 
@@ -99,6 +99,23 @@ def test_every_gaussian_stays_in_its_bounds_after_wild_parameters(mode):
     # unconstrained Gaussians do leave the bounds (the check can fail)
     with pytest.raises(AssertionError, match="bound"):
         check_bounds(anchored_gaussians(p, fr, b, "free"), p, fr, b)
+
+
+def test_bound_activity_counts_raw_parameters_on_or_beyond_each_bound():
+    V, F = mesh()
+    fr = face_frames(V, F)
+    b = AnchorBounds()
+    p = init_anchored(fr, torch.rand(3, 3, dtype=torch.float64))
+    p.log_scales = torch.log(fr.radius[:, None] * torch.tensor([0.5, 0.5, 0.001], dtype=torch.float64))
+    act = bound_activity(p, fr, b)
+    assert act == {"position": 0.0, "offset": 0.0, "scale_plane": 0.0, "scale_normal": 0.0, "tilt": 0.0, "any": 0.0}
+    p.means_2d = p.means_2d.clone()
+    p.means_2d[0] = fr.tri2d[0, 1] + 0.1 * fr.radius[0]  # outside the triangle, past vertex B
+    p.elevate = torch.tensor([0.0, 3.0, 0.0], dtype=torch.float64) * fr.radius
+    p.angles = torch.tensor([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, -0.2]], dtype=torch.float64)
+    act = bound_activity(p, fr, b)
+    assert act["position"] == pytest.approx(1 / 3) and act["offset"] == pytest.approx(1 / 3)
+    assert act["tilt"] == pytest.approx(1 / 3) and act["any"] == 1.0 and act["scale_plane"] == 0.0
 
 
 def test_init_is_at_the_centroids_with_face_rotation():

@@ -43,6 +43,7 @@ def test_variants_run_and_write_their_outputs(project, variant):
         assert (d / "model" / "textured_mesh.ply").exists()
         return
     assert m["within_face_bounds"] is True and m["n_gaussians"] > 0
+    assert 0.0 <= m["at_bound_any"] <= 1.0 and set(m) >= {"at_bound_position", "at_bound_tilt"}
     ply = read_gaussian_ply(d / "model" / "gaussians.ply")
     assert len(ply["x"]) == m["n_gaussians"] and np.all(np.isfinite(ply["opacity"]))
     b = np.load(d / "model" / "binding.npz")
