@@ -76,6 +76,10 @@ def test_repro_builds_capture_then_does_nothing(repo):
         assert (d / "out" / "kitchen_tiny" / sub).exists(), sub
     table = json.loads((d / "reports" / "geometry" / "table.json").read_text())
     assert set(table["kitchen_tiny"]) == {"neural (selected)", "tsdf"}
+    for sub in ("decompose/segments.json", "articulate/parts.json", "evaluate/matches.json"):
+        assert (d / "out" / "kitchen_tiny" / sub).exists(), sub
+    ev = json.loads((d / "out" / "kitchen_tiny" / "evaluate" / "metrics.json").read_text())
+    assert "recall" in ev and ev["n_gt"] > 0
     abl = json.loads((d / "reports" / "ablation" / "table.json").read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
     assert (d / "out" / "kitchen_tiny" / "appearance" / "movable_gs_ste" / "model" / "gaussians.ply").exists()

@@ -1,0 +1,207 @@
+"""Articulation metrics (DESIGN §6; paper Tab. 4/5): front matching, precision / recall, EA-score.
+
+Matching: a predicted articulated part and a GT one are candidates when their front normals are
+within 45 deg and the predicted front's centre lies within 5 cm of the GT front plane; their
+overlap is the IoU of the two rectangles in the GT front plane (the predicted one projected
+orthogonally onto it). Pairs with IoU >= 0.5 are matched greedily by IoU, one to one.
+correct = matched and same kind; precision = correct / predicted, where a prediction that matches
+nothing and whose front centre lies in a GT ``ignore_boxes`` region is not counted;
+recall = correct / GT.
+
+EA-score (Zhao et al. 2021, as 3DOI): for a correct revolute part and a view, both hinge axes
+are drawn as the segment of the axis line that spans the part's front, projected, clipped to the
+image and normalised to the unit square; S_theta = 1 - angle / (pi / 2) (lines, angle folded to
+[0, pi / 2]), S_d = max(0, 1 - |midpoint_pred - midpoint_gt|); EA = (S_theta S_d)^2, averaged
+over the views where both segments are visible, then over parts.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from jaxtyping import Float
+
+from drawer_lib.io.parts import Front, Part, PartsFile
+
+IOU_MIN = 0.5
+NORMAL_MAX_DEG = 45.0
+PLANE_MAX_M = 0.05
+
+
+def polygon_area(p: Float[np.ndarray, "N 2"]) -> float:
+    """Signed area (counter-clockwise positive) of a simple polygon."""
+    if len(p) < 3:
+        return 0.0
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _ccw(p: np.ndarray) -> np.ndarray:
+    return p if polygon_area(p) >= 0 else p[::-1]
+
+
+def clip_convex(subject: Float[np.ndarray, "N 2"], clip: Float[np.ndarray, "M 2"]) -> np.ndarray:
+    """Sutherland–Hodgman: the intersection of convex polygons (vertices [K, 2], maybe K = 0)."""
+    out = _ccw(np.asarray(subject, np.float64))
+    cl = _ccw(np.asarray(clip, np.float64))
+    for i in range(len(cl)):
+        if len(out) == 0:
+            break
+        a, b = cl[i], cl[(i + 1) % len(cl)]
+        e = b - a
+        side = e[0] * (out[:, 1] - a[1]) - e[1] * (out[:, 0] - a[0])  # >= 0: inside (left of a->b)
+        res = []
+        for j in range(len(out)):
+            p, q = out[j], out[(j + 1) % len(out)]
+            sp, sq = side[j], side[(j + 1) % len(out)]
+            if sp >= 0:
+                res.append(p)
+            if (sp >= 0) != (sq >= 0):
+                t = sp / (sp - sq)
+                res.append(p + t * (q - p))
+        out = np.asarray(res).reshape(-1, 2)
+    return out
+
+
+def convex_iou(a: np.ndarray, b: np.ndarray) -> float:
+    ia = abs(polygon_area(a)) + abs(polygon_area(b))
+    inter = abs(polygon_area(clip_convex(a, b)))
+    union = ia - inter
+    return inter / union if union > 0 else 0.0
+
+
+def front_overlap(pred: Front, gt: Front) -> float:
+    """IoU of the two fronts in the GT front plane, 0 when the normals differ by more than 45
+    deg or the predicted centre is farther than 5 cm from the GT plane."""
+    n_g, n_p = np.asarray(gt.normal), np.asarray(pred.normal)
+    if np.dot(n_g, n_p) < np.cos(np.deg2rad(NORMAL_MAX_DEG)):
+        return 0.0
+    c_g = np.asarray(gt.center)
+    if abs(np.dot(np.asarray(pred.center) - c_g, n_g)) > PLANE_MAX_M:
+        return 0.0
+    u, v = np.asarray(gt.u), gt.v
+    to2d = lambda P: np.stack([(P - c_g) @ u, (P - c_g) @ v], -1)  # noqa: E731
+    return convex_iou(to2d(pred.corners()), to2d(gt.corners()))
+
+
+@dataclass
+class Matching:
+    pairs: list[tuple[int, int, float]]  # (pred index, gt index, IoU) into the articulated lists
+    pred: list[Part]
+    gt: list[Part]
+    ignored: list[int] = field(default_factory=list)  # unmatched predictions inside an ignore box
+
+    @property
+    def correct(self) -> list[tuple[int, int, float]]:
+        return [(i, j, o) for i, j, o in self.pairs if self.pred[i].kind == self.gt[j].kind]
+
+
+def match_parts(pred: PartsFile, gt: PartsFile) -> Matching:
+    P = [p for p in pred.parts if p.articulated]
+    G = [g for g in gt.parts if g.articulated]
+    cands = sorted(((front_overlap(p.front, g.front), i, j) for i, p in enumerate(P) for j, g in enumerate(G)),
+                   reverse=True)
+    used_p, used_g, pairs = set(), set(), []
+    for o, i, j in cands:
+        if o < IOU_MIN:
+            break
+        if i in used_p or j in used_g:
+            continue
+        used_p.add(i)
+        used_g.add(j)
+        pairs.append((i, j, o))
+    ignored = [i for i, p in enumerate(P) if i not in used_p and any(b.contains(p.front.center) for b in gt.ignore_boxes)]
+    return Matching(pairs, P, G, ignored)
+
+
+def axis_segment(part: Part) -> np.ndarray:
+    """[2, 3] the stretch of a part's axis line that spans its front."""
+    o, d = np.asarray(part.axis.origin), np.asarray(part.axis.direction)
+    t = (part.front.corners() - o) @ d
+    return np.stack([o + t.min() * d, o + t.max() * d])
+
+
+def project_segment(seg: np.ndarray, w2c: np.ndarray, K: tuple[float, float, float, float], W: int, H: int,
+                    near: float = 1e-3) -> np.ndarray | None:
+    """[2, 2] the segment projected (OpenCV camera), clipped to z > near and to the image, in
+    normalised [0, 1]^2 coordinates; None when nothing of it is visible."""
+    pc = seg @ w2c[:3, :3].T + w2c[:3, 3]
+    a, b = pc[0], pc[1]
+    if a[2] <= near and b[2] <= near:
+        return None
+    if a[2] <= near or b[2] <= near:  # clip to the near plane
+        t = (near - a[2]) / (b[2] - a[2])
+        m = a + t * (b - a)
+        a, b = (m, b) if a[2] <= near else (a, m)
+    fx, fy, cx, cy = K
+    pa = np.array([fx * a[0] / a[2] + cx, fy * a[1] / a[2] + cy]) / (W, H)
+    pb = np.array([fx * b[0] / b[2] + cx, fy * b[1] / b[2] + cy]) / (W, H)
+    # Liang–Barsky against [0, 1]^2
+    d = pb - pa
+    t0, t1 = 0.0, 1.0
+    for p, q in ((-d[0], pa[0]), (d[0], 1 - pa[0]), (-d[1], pa[1]), (d[1], 1 - pa[1])):
+        if p == 0:
+            if q < 0:
+                return None
+            continue
+        r = q / p
+        if p < 0:
+            t0 = max(t0, r)
+        else:
+            t1 = min(t1, r)
+    if t0 >= t1:
+        return None
+    return np.stack([pa + t0 * d, pa + t1 * d])
+
+
+def ea_pair(pred2d: np.ndarray, gt2d: np.ndarray) -> float:
+    """EA-score of two normalised 2D segments [2, 2]."""
+    dp, dg = pred2d[1] - pred2d[0], gt2d[1] - gt2d[0]
+    ang = abs(np.arctan2(dp[1], dp[0]) - np.arctan2(dg[1], dg[0])) % np.pi
+    ang = min(ang, np.pi - ang)
+    s_t = 1 - ang / (np.pi / 2)
+    s_d = max(0.0, 1 - float(np.linalg.norm(pred2d.mean(0) - gt2d.mean(0))))
+    return (s_t * s_d) ** 2
+
+
+def ea_score(pred: Part, gt: Part, views: list[tuple[np.ndarray, tuple, int, int]]) -> float | None:
+    """Mean EA over ``views`` [(w2c, (fx, fy, cx, cy), W, H)] where both axes are visible; None
+    when there is no such view."""
+    sp, sg = axis_segment(pred), axis_segment(gt)
+    vals = []
+    for w2c, K, W, H in views:
+        a, b = project_segment(sp, w2c, K, W, H), project_segment(sg, w2c, K, W, H)
+        if a is not None and b is not None and np.linalg.norm(a[1] - a[0]) > 1e-6 and np.linalg.norm(b[1] - b[0]) > 1e-6:
+            vals.append(ea_pair(a, b))
+    return float(np.mean(vals)) if vals else None
+
+
+def articulation_metrics(pred: PartsFile, gt: PartsFile, views: list) -> tuple[dict, list[dict]]:
+    """(flat metrics, per-GT-part details). Metrics: ``precision``, ``recall``, ``ea_score``
+    (absent with no correct revolute part visible in a view), counts."""
+    m = match_parts(pred, gt)
+    correct = m.correct
+    n_pred = len(m.pred) - len(m.ignored)
+    eas = []
+    details = []
+    by_gt = {j: (i, o) for i, j, o in m.pairs}
+    for j, g in enumerate(m.gt):
+        row: dict = {"gt": g.id, "kind": g.kind}
+        if j in by_gt:
+            i, o = by_gt[j]
+            p = m.pred[i]
+            row.update({"pred": p.id, "pred_kind": p.kind, "iou": round(o, 4), "correct": p.kind == g.kind})
+            if p.kind == g.kind == "revolute":
+                e = ea_score(p, g, views)
+                row["ea_score"] = e
+                if e is not None:
+                    eas.append(e)
+        else:
+            row.update({"pred": None, "correct": False})
+        details.append(row)
+    out = {"precision": len(correct) / n_pred if n_pred > 0 else 0.0, "recall": len(correct) / len(m.gt) if m.gt else 0.0,
+           "n_pred": len(m.pred), "n_gt": len(m.gt), "n_correct": len(correct), "n_ignored": len(m.ignored),
+           "n_revolute_scored": len(eas)}
+    if eas:
+        out["ea_score"] = float(np.mean(eas))
+        out["ea_score_min"] = float(np.min(eas))
+    return out, details

@@ -1,0 +1,114 @@
+"""Configs of the ``decompose`` and ``articulate`` stages (conf/decompose/, conf/articulate/).
+Lengths in metres, angles in degrees."""
+
+from dataclasses import dataclass, field
+
+from drawer_lib.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class GeometricConfig:
+    """The fallback without detections: vertical planar regions of the mesh (normals within
+    ``vertical_deg`` of horizontal, grown over dihedral angles below ``smooth_deg``) of at least
+    ``min_area`` m^2 are the candidate front planes; each is rasterised at ``cell`` and split
+    into fronts along the gaps and steps between them, which the train images show as lines
+    (multi-view colour gradient on the plane) and the mesh as depth steps."""
+
+    vertical_deg: float = 20.0
+    smooth_deg: float = 15.0
+    min_area: float = 0.02
+    cell: float = 0.01
+    edge_quantile: float = 0.9
+    min_front: float = 0.12
+
+
+@dataclass(frozen=True)
+class DecomposeConfig:
+    """Detections -> 3D segments (DRAWER percept_stage1-6, reference §3.2-3.7).
+
+    ``max_faces``: the mesh is decimated to this many faces first (DRAWER: 80k at full
+    resolution), cut to what the train views see, then split until no edge exceeds ``max_edge``.
+    ``erode_px``: masks are eroded before their faces are collected, unless that would remove
+    half of a mask (DRAWER: 4 at 1080p). Graph: mesh-adjacent faces are joined with weight = the number of masks holding both;
+    edges seen in fewer than ``min_cooccur`` masks, or in fewer than ``min_rate`` of the frames
+    that see both faces, are dropped (this removes one-off false masks and the borders between
+    fronts that merged masks bridge now and then), and so are edges whose dihedral angle exceeds
+    ``max_dihedral``; the weight is that rate. Louvain (networkx, seeded)
+    runs at every resolution in ``resolutions``; communities of at least ``min_faces`` faces are
+    candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
+    least ``min_px_frac`` of the image area of it with the frame's masks; ``score`` = median best IoU, kept when
+    >= ``min_score`` over >= ``min_frames`` frames. Greedy by score: a candidate more than
+    ``dup_overlap`` of which better segments already hold is a duplicate.
+    ``grow``: each segment is then completed from the whole (un-eroded) masks it matched, by a
+    per-face majority over frames (:func:`~drawer_lib.perception.decompose.grow_segments`).
+    Normal consistency: a segment is ``planar`` when >= ``planar_frac`` of its area is within
+    ``planar_deg`` of its mean normal.
+    ``source``: ``auto`` uses detections when the capture has them, else the geometric fallback;
+    ``detections`` / ``geometric`` force one path."""
+
+    source: str = "auto"
+    max_faces: int = 40000
+    max_edge: float = 0.06
+    erode_px: int = 1
+    min_cooccur: int = 3
+    min_rate: float = 0.3
+    max_dihedral: float = 50.0
+    resolutions: list[float] = field(default_factory=lambda: [0.1, 0.5, 1.0, 2.0, 5.0, 10.0])
+    min_faces: int = 15
+    min_px_frac: float = 0.0015
+    min_score: float = 0.6
+    min_frames: int = 2
+    dup_overlap: float = 0.3
+    grow: bool = True
+    planar_deg: float = 30.0
+    planar_frac: float = 0.6
+    seed: int = 42
+    geometric: GeometricConfig = field(default_factory=GeometricConfig)
+
+    def __post_init__(self):
+        if self.source not in ("auto", "detections", "geometric"):
+            raise ConfigError(f"decompose.source = {self.source!r} must be auto, detections or geometric")
+        if not self.resolutions or any(r <= 0 for r in self.resolutions):
+            raise ConfigError(f"decompose.resolutions = {self.resolutions} must be positive numbers")
+        if not 0 < self.min_score <= 1 or not 0 < self.dup_overlap <= 1:
+            raise ConfigError("decompose: min_score and dup_overlap must be in (0, 1]")
+        if self.max_faces < 100 or self.min_faces < 1:
+            raise ConfigError("decompose: max_faces >= 100 and min_faces >= 1")
+
+
+@dataclass(frozen=True)
+class ArticulateConfig:
+    """Segments -> ``parts.json`` (DESIGN §5).
+
+    ``estimator``: ``geometric`` (built in: plane, rectangle, handle and layout cues) or a learned
+    one (``3doi``, ``vlm``: named slots that need unavailable weights/services; register one with
+    :func:`drawer_lib.perception.articulate.register_estimator`). ``use_labels``: the detector's
+    labels (majority over frames) may break the one tie geometry cannot (a top handle: drawer
+    or bottom-hinged flap); they never decide a type on their own. Handles are mesh points
+    ``handle_min``..``handle_max`` in front of the front plane within its rectangle (or faces
+    that "handle" masks hit). A front smaller than ``min_size`` (either side) is not a part.
+    Revolute limits default to ``revolute_limit_deg``; drawer travel is ``drawer_travel`` x the
+    carcass depth the mesh shows behind the front (``default_depth`` when it shows none)."""
+
+    estimator: str = "geometric"
+    use_labels: bool = True
+    handle_min: float = 0.008
+    handle_max: float = 0.08
+    edge_frac: float = 0.3
+    min_size: float = 0.08
+    max_size: float = 1.6
+    vertical_deg: float = 25.0
+    revolute_limit_deg: float = 90.0
+    drawer_travel: float = 0.8
+    default_depth: float = 0.5
+    sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
+
+    def __post_init__(self):
+        if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:
+            raise ConfigError(f"articulate.sliding_step = {self.sliding_step} must be [min, max] with 0 <= min < max")
+        if not 0 < self.edge_frac < 0.5:
+            raise ConfigError(f"articulate.edge_frac = {self.edge_frac} must be in (0, 0.5)")
+        if not 0 < self.handle_min < self.handle_max:
+            raise ConfigError("articulate: need 0 < handle_min < handle_max")
+        if self.revolute_limit_deg <= 0 or self.drawer_travel <= 0:
+            raise ConfigError("articulate: revolute_limit_deg and drawer_travel must be positive")

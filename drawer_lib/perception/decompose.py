@@ -1,0 +1,284 @@
+"""Scene decomposition from 2D detections (DRAWER §3.3; reference §3.2-3.7), on the CPU.
+
+1. Every detection mask (eroded) is lifted to the mesh faces it covers, through per-frame
+   face-id maps (ray cast of the same mesh, so visibility is exact).
+2. Graph: mesh-adjacent faces, weight = number of masks that hold both. A false mask, a merge or
+   a ragged border happens in a frame or two; a front is seen whole in many, so edges seen in
+   fewer than ``min_cooccur`` masks are dropped, and so are sharp creases.
+3. Louvain communities (networkx, seeded) at several resolutions give overlapping candidates.
+4. Each candidate is rendered back into every frame that sees it and compared with that frame's
+   masks: ``score`` = median over frames of the best IoU. A missed or merged detection lowers
+   a frame or two, not the median.
+5. Greedy selection by score removes duplicates (the same front found at several resolutions);
+   normal consistency marks planar segments (fronts) against the rest (objects).
+
+Label votes (the labels of the best-matching masks) are kept as hints for the articulate stage;
+they never decide anything here.
+"""
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from drawer_lib.io.capture import Capture
+from drawer_lib.perception.config import DecomposeConfig
+from drawer_lib.perception.views import MeshViews, adjacency_edges, connected_components, largest_component
+
+HANDLE_LABELS = ("handle", "knob", "pull")
+
+
+@dataclass
+class MaskRecord:
+    view: int  # index into MeshViews.frames
+    det_id: int
+    label: str
+    score: float
+    faces: np.ndarray  # face ids under the (eroded) mask
+
+
+@dataclass
+class Segment:
+    id: int
+    faces: np.ndarray  # face ids of the perception mesh
+    score: float  # median best back-projection IoU (1.0 for geometric segments)
+    support: int  # frames that scored it
+    labels: dict = field(default_factory=dict)  # label votes of the best-matching masks
+    planar: bool = True
+    normal: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    area: float = 0.0
+    centroid: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    source: str = "detections"
+    source_candidate: int = -1  # index of the candidate it came from (within one run)
+    matched: list = field(default_factory=list)  # [(frame stem, detection id)] of the masks it matches
+
+    def to_json(self) -> dict:
+        return {"id": self.id, "n_faces": int(len(self.faces)), "score": round(float(self.score), 4),
+                "support_frames": int(self.support), "labels": self.labels, "planar": bool(self.planar),
+                "normal": [round(float(x), 5) for x in self.normal], "area_m2": round(float(self.area), 5),
+                "centroid": [round(float(x), 5) for x in self.centroid], "source": self.source,
+                "matched": [[str(a), int(b)] for a, b in self.matched]}
+
+
+def lift_masks(cap: Capture, views: MeshViews, erode_px: int) -> tuple[list[MaskRecord], np.ndarray]:
+    """The detections of every view as face sets; also [F] per-face count of "handle" mask hits."""
+    from scipy import ndimage
+
+    recs: list[MaskRecord] = []
+    handle_hits = np.zeros(views.n_faces, np.int64)
+    for t, i in enumerate(views.frames):
+        lab, dets = cap.detections(i)
+        for d in dets:
+            m = lab == int(d["id"])
+            if erode_px > 0:  # not when that would take most of a small mask away
+                e = ndimage.binary_erosion(m, iterations=erode_px)
+                m = e if e.sum() >= 0.5 * m.sum() else m
+            f = views.faces_under(t, m)
+            if len(f) == 0:
+                continue
+            label = str(d.get("label", "")).strip().lower()
+            if label in HANDLE_LABELS:
+                handle_hits[f] += 1
+                continue
+            recs.append(MaskRecord(t, int(d["id"]), label, float(d.get("score", 1.0)), f))
+    return recs, handle_hits
+
+
+def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, masks: list[MaskRecord],
+                       visible: np.ndarray, min_cooccur: int, min_rate: float, max_dihedral: float
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """(edges [E', 2], weights [E']): adjacent face pairs held together by >= ``min_cooccur``
+    masks and in >= ``min_rate`` of the frames that see both (``visible`` [F]: frames seeing each
+    face), with a dihedral angle <= ``max_dihedral`` deg. Weight = that rate."""
+    w = np.zeros(len(edges), np.int64)
+    inm = np.zeros(n_faces, bool)
+    for r in masks:
+        inm[r.faces] = True
+        w += inm[edges[:, 0]] & inm[edges[:, 1]]
+        inm[r.faces] = False
+    rate = w / np.maximum(np.minimum(visible[edges[:, 0]], visible[edges[:, 1]]), 1)
+    keep = (w >= min_cooccur) & (rate >= min_rate) & (dihedral <= max_dihedral)
+    return edges[keep], rate[keep]
+
+
+def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, resolutions, min_faces: int,
+                       seed: int, all_edges: np.ndarray) -> list[np.ndarray]:
+    """Communities (face-id arrays, each its largest connected component) over all resolutions,
+    exact duplicates removed."""
+    import networkx as nx
+
+    out, seen = [], set()
+
+    def add(f: np.ndarray) -> None:
+        if len(f) < min_faces:
+            return
+        key = hash(np.sort(f).tobytes())
+        if key not in seen:
+            seen.add(key)
+            out.append(np.sort(f))
+
+    # the connected components of the graph (the coarsest split), then Louvain at each resolution
+    lab = connected_components(n_faces, edges)
+    deg = np.bincount(edges.ravel(), minlength=n_faces) if len(edges) else np.zeros(n_faces, np.int64)
+    for c in np.unique(lab[deg > 0]):
+        add(np.nonzero((lab == c) & (deg > 0))[0])
+    G = nx.Graph()
+    G.add_weighted_edges_from(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), weights.tolist()))
+    for r in resolutions:
+        for com in nx.community.louvain_communities(G, weight="weight", resolution=float(r), seed=seed):
+            if len(com) >= min_faces:
+                add(largest_component(np.fromiter(com, np.int64), n_faces, edges))
+    return out
+
+
+def backprojection_scores(cands: list[np.ndarray], views: MeshViews, cap: Capture, masks: list[MaskRecord],
+                          min_px: int, progress=lambda it, **kw: it) -> list[tuple[float, int, Counter, list[tuple[int, int]]]]:
+    """Per candidate: (median over frames of the best mask IoU, frames used, label votes,
+    [(view, mask id)] of the masks it matches with IoU >= 0.5)."""
+    by_view: dict[int, list[MaskRecord]] = {}
+    for r in masks:
+        by_view.setdefault(r.view, []).append(r)
+    labs = [cap.detections(i)[0].astype(np.int64) for i in views.frames]
+    label_of = {(r.view, r.det_id): r.label for r in masks}
+    F = views.n_faces
+    sizes = [np.bincount(lb.ravel(), minlength=int(lb.max()) + 1) for lb in labs]
+    res = []
+    for f in progress(cands, desc="back-projection", total=len(cands)):
+        member = np.zeros(F, bool)
+        member[f] = True
+        ious, votes, matched = [], Counter(), []
+        for t in range(len(views.frames)):
+            sil = views.silhouette(t, member)
+            n = int(sil.sum())
+            if n < min_px:
+                continue
+            lab = labs[t]
+            ids = [r.det_id for r in by_view.get(t, [])]
+            if not ids:
+                ious.append(0.0)
+                continue
+            inter = np.bincount(lab[sil], minlength=int(lab.max()) + 1)
+            size = sizes[t]
+            best, best_id = 0.0, None
+            for d in ids:
+                if d < len(inter):
+                    iou = inter[d] / (n + size[d] - inter[d])
+                    if iou > best:
+                        best, best_id = float(iou), d
+            ious.append(best)
+            if best_id is not None and best >= 0.5:
+                votes[label_of[(t, best_id)]] += 1
+                matched.append((t, best_id))
+        res.append((float(np.median(ious)) if ious else 0.0, len(ious), votes, matched))
+    return res
+
+
+def face_geometry(mesh: trimesh.Trimesh, faces: np.ndarray, planar_deg: float) -> tuple[np.ndarray, float, np.ndarray, float]:
+    """(area-weighted mean unit normal, area m^2, area-weighted centroid, fraction of the area
+    within ``planar_deg`` of the mean normal)."""
+    a = np.asarray(mesh.area_faces)[faces]
+    n = np.asarray(mesh.face_normals)[faces]
+    c = np.asarray(mesh.triangles_center)[faces]
+    area = float(a.sum())
+    if area <= 0:
+        return np.zeros(3), 0.0, c.mean(0) if len(c) else np.zeros(3), 0.0
+    mn = (a[:, None] * n).sum(0)
+    norm = np.linalg.norm(mn)
+    mn = mn / norm if norm > 1e-12 else np.zeros(3)
+    frac = float(a[(n @ mn) >= np.cos(np.deg2rad(planar_deg))].sum() / area) if norm > 1e-12 else 0.0
+    return mn, area, (a[:, None] * c).sum(0) / area, frac
+
+
+def select_segments(cands: list[np.ndarray], scores: list[tuple], mesh: trimesh.Trimesh,
+                    cfg: DecomposeConfig) -> list[Segment]:
+    """Greedy by score (then size): a candidate of which more than ``dup_overlap`` is already
+    taken by better segments is a duplicate; otherwise it is accepted without the taken faces."""
+    order = sorted(range(len(cands)), key=lambda k: (-scores[k][0], -len(cands[k])))
+    taken = np.full(len(mesh.faces), -1, np.int64)
+    segs: list[Segment] = []
+    for k in order:
+        s, support, votes = scores[k][:3]
+        if s < cfg.min_score or support < cfg.min_frames:
+            continue
+        f = cands[k]
+        owners = taken[f]
+        if (owners >= 0).sum() > cfg.dup_overlap * len(f):  # mostly explained by a better segment
+            continue
+        f = f[owners < 0]
+        if len(f) < cfg.min_faces:
+            continue
+        n, area, c, frac = face_geometry(mesh, f, cfg.planar_deg)
+        seg = Segment(len(segs), f, s, support, dict(votes.most_common()), frac >= cfg.planar_frac, n, area, c,
+                      source_candidate=k)
+        taken[f] = seg.id
+        segs.append(seg)
+    return segs
+
+
+def grow_segments(segs: list[Segment], matched: list[list[tuple[int, int]]], views: MeshViews, cap: Capture,
+                  edges: np.ndarray, cfg: DecomposeConfig) -> None:
+    """Complete each segment from the (un-eroded) masks it matched: a face joins when it lies
+    under the segment's mask in >= half of the matched frames that see it (>= 2 of them), its
+    normal agrees with a planar segment's, and it connects to the segment. A face two segments
+    claim goes to the higher rate. Edits ``segs`` in place (faces, area, centroid, normal)."""
+    F = views.n_faces
+    labs: dict[int, np.ndarray] = {}
+    normals = np.asarray(views.mesh.face_normals)
+    best_rate = np.zeros(F)
+    owner = np.full(F, -1, np.int64)
+    grown: list[np.ndarray] = []
+    for s, mt in zip(segs, matched):
+        votes = np.zeros(F, np.int64)
+        seen = np.zeros(F, np.int64)
+        for t, d in mt:
+            if t not in labs:
+                labs[t] = cap.detections(views.frames[t])[0]
+            seen[views.face_px[t] >= 0] += 1
+            votes[views.faces_under(t, labs[t] == d)] += 1
+        rate = votes / np.maximum(seen, 1)
+        ok = (rate >= 0.5) & (votes >= 2)
+        if s.planar:
+            ok &= normals @ s.normal >= np.cos(np.deg2rad(cfg.planar_deg))
+        ok[s.faces] = True
+        lab = connected_components(F, edges, ok)
+        core = np.unique(lab[s.faces])
+        f = np.nonzero(np.isin(lab, core[core >= 0]))[0]
+        grown.append(f)
+        better = rate[f] > best_rate[f]
+        best_rate[f[better]] = rate[f[better]]
+        owner[f[better]] = s.id
+    for s, f in zip(segs, grown):
+        f = f[(owner[f] == s.id) | np.isin(f, s.faces)]
+        n, area, c, _ = face_geometry(views.mesh, f, cfg.planar_deg)
+        s.faces, s.area, s.centroid = f, area, c
+        if s.planar:
+            s.normal = n
+
+
+def face_labels(n_faces: int, segs: list[Segment]) -> np.ndarray:
+    lab = np.full(n_faces, -1, np.int32)
+    for s in segs:
+        lab[s.faces] = s.id
+    return lab
+
+
+def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConfig,
+                              progress=lambda it, **kw: it) -> tuple[list[Segment], np.ndarray, dict]:
+    """(segments, [F] handle-mask hits per face, counts)."""
+    masks, handle_hits = lift_masks(cap, views, cfg.erode_px)
+    edges, dih = adjacency_edges(views.mesh)
+    visible = views.face_frames()
+    ge, gw = cooccurrence_graph(views.n_faces, edges, dih, masks, visible, cfg.min_cooccur, cfg.min_rate,
+                                cfg.max_dihedral)
+    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, edges)
+    min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
+    scores = backprojection_scores(cands, views, cap, masks, min_px, progress)
+    segs = select_segments(cands, scores, views.mesh, cfg)
+    for sg in segs:
+        sg.matched = [(cap.frames[views.frames[t]].stem, d) for t, d in scores[sg.source_candidate][3]]
+    if cfg.grow:
+        grow_segments(segs, [scores[s.source_candidate][3] for s in segs], views, cap, edges, cfg)
+    info = {"masks": len(masks), "graph_edges": int(len(ge)), "candidates": len(cands), "segments": len(segs),
+            "planar_segments": sum(s.planar for s in segs), "handle_faces": int((handle_hits > 0).sum())}
+    return segs, handle_hits, info

@@ -1,0 +1,37 @@
+"""DVC stage ``decompose@<scene>``: capture detections + ``mesh/mesh.ply`` -> ``out/<scene>/decompose/``
+(``segments.json``, ``face_labels.npz`` per face of ``perception_mesh.ply``, ``metrics.json``).
+
+    python -m stages.decompose scene=kitchen_small                     # interactive, conf/
+    python -m stages.decompose -cn dvc_stage scene=kitchen_small       # as DVC runs it: params.yaml
+    python -m stages.decompose scene=kitchen_small decompose.source=geometric   # without detections
+"""
+
+from pathlib import Path
+
+import hydra
+from omegaconf import DictConfig
+
+from drawer_lib.config.stage import scene_of, stage_dir
+from drawer_lib.config.typed import to_typed
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.perception.config import DecomposeConfig
+from drawer_lib.perception.pipeline import run_decompose
+from drawer_lib.runner import main_guard, stage_run
+
+
+@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+@main_guard
+def main(cfg: DictConfig) -> None:
+    scene, _ = scene_of(cfg)
+    dc = to_typed(DecomposeConfig, cfg.decompose, "decompose")
+    cap_dir = Path(cfg.paths.out) / scene / "capture"
+    manifest = read_manifest(cap_dir / "manifest.json")
+    cap = load_capture(cap_dir)
+    mesh = Path(cfg.paths.out) / scene / "mesh" / "mesh.ply"
+    with stage_run("decompose", stage_dir(cfg, scene, "decompose"), seed=cfg.seed) as run:
+        run.metrics.update(run_decompose(dc, cap, manifest, mesh, run, run.dir))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,85 @@
+"""Articulation metrics (DESIGN §6): rectangle IoU in the GT plane, matching with its gates and
+ignore boxes, precision / recall, EA-score and its clipping."""
+
+import numpy as np
+import pytest
+
+from drawer_lib.io.parts import Axis, Front, IgnoreBox, Part, PartsFile
+from drawer_lib.metrics.articulation import (articulation_metrics, clip_convex, convex_iou, ea_pair, front_overlap,
+                                             match_parts, project_segment)
+
+N = (0.0, -1.0, 0.0)
+U = (1.0, 0.0, 0.0)
+
+
+def front(cx=0.0, cz=0.5, w=0.5, h=0.7, n=N, u=U, y=-0.6):
+    return Front((cx, y, cz), n, u, (w, h))
+
+
+def door(pid, fr, kind="revolute"):
+    edge = np.asarray(fr.center) - np.asarray(fr.u) * fr.size[0] / 2
+    return Part(pid, kind, Axis(tuple(edge), (0.0, 0.0, -1.0)), (0.0, 1.57), fr)
+
+
+def test_convex_clip_and_iou_of_squares():
+    a = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    b = a + [0.5, 0.0]
+    inter = clip_convex(a, b)
+    assert np.allclose(np.sort(inter[:, 0]), [0.5, 0.5, 1.0, 1.0])
+    assert convex_iou(a, b) == pytest.approx(0.5 / 1.5)
+    assert convex_iou(a, a[::-1]) == pytest.approx(1.0)  # orientation does not matter
+    assert convex_iou(a, a + 5) == 0.0
+
+
+def test_front_overlap_gates():
+    g = front()
+    assert front_overlap(g, g) == pytest.approx(1.0)
+    assert front_overlap(front(cx=0.25), g) == pytest.approx(0.25 / 0.75)
+    assert front_overlap(front(y=-0.66), g) == 0.0  # 6 cm off the GT plane
+    assert front_overlap(front(y=-0.64), g) == pytest.approx(1.0)  # within 5 cm
+    tilted = (0.0, -np.cos(np.deg2rad(50)), np.sin(np.deg2rad(50)))
+    assert front_overlap(Front(g.center, tilted, U, g.size), g) == 0.0  # normals 50 deg apart
+    # a rotated rectangle is projected, not matched by its centre
+    r = Front(g.center, N, (0.0, 0.0, 1.0), (0.7, 0.5))
+    assert front_overlap(r, g) == pytest.approx(1.0)
+
+
+def test_matching_is_one_to_one_and_kind_aware_with_ignore_boxes():
+    g1, g2 = front(cx=0.0), front(cx=0.6)
+    gt = PartsFile((door("d0", g1), door("d1", g2, "prismatic")),
+                   (IgnoreBox("oven", ((1.0, -0.7, 0.0), (1.6, -0.5, 1.0))),))
+    pred = PartsFile((door("a", front(cx=0.01)), door("b", front(cx=0.02)), door("c", front(cx=0.6)),
+                      door("oven_front", front(cx=1.3))))
+    m = match_parts(pred, gt)
+    assert sorted((i, j) for i, j, _ in m.pairs) == [(0, 0), (2, 1)]  # "a" overlaps d0 best, "b" is left over
+    assert m.ignored == [3]
+    res, details = articulation_metrics(pred, gt, [])
+    # correct: a (revolute = revolute); c is revolute against a prismatic GT
+    assert res["n_correct"] == 1 and res["recall"] == 0.5
+    assert res["precision"] == pytest.approx(1 / 3)  # a, b, c count; the oven front does not
+    assert details[1]["correct"] is False
+
+
+def test_ea_score_extremes():
+    a = np.array([[0.2, 0.1], [0.2, 0.9]])
+    assert ea_pair(a, a) == pytest.approx(1.0)
+    assert ea_pair(a, a[::-1]) == pytest.approx(1.0)  # a line has no direction
+    b = np.array([[0.1, 0.5], [0.3, 0.5]])  # perpendicular, same midpoint
+    assert ea_pair(a, b) == pytest.approx(0.0)
+    c = a + [0.1, 0.0]
+    assert ea_pair(a, c) == pytest.approx(0.9**2)
+
+
+def test_projection_clips_to_near_plane_and_image():
+    w2c = np.eye(4)
+    K, W, H = (100.0, 100.0, 50.0, 50.0), 100, 100
+    seg = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 5.0]])
+    p = project_segment(seg, w2c, K, W, H)
+    assert p is not None and np.allclose(p, [[0.5, 0.5], [0.5, 0.5]])  # along the optical axis: a point
+    seg = np.array([[-5.0, 0.0, 1.0], [5.0, 0.0, 1.0]])
+    p = project_segment(seg, w2c, K, W, H)
+    assert np.allclose(np.sort(p[:, 0]), [0.0, 1.0]) and np.allclose(p[:, 1], 0.5)  # clipped to the image
+    assert project_segment(np.array([[0, 0, -1.0], [0, 0, -2.0]]), w2c, K, W, H) is None  # behind
+    seg = np.array([[0.0, 0.1, -1.0], [0.0, 0.1, 1.0]])  # crosses the camera plane: finite, clipped
+    p = project_segment(seg, w2c, K, W, H)
+    assert p is not None and np.all(np.isfinite(p))

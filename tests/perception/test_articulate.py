@@ -1,0 +1,157 @@
+"""Articulation from geometry on tiny analytic fixtures: one cabinet front (outer face at
+y = -0.6, facing -y) in front of a wall, with a handle box where a drawer, a left-hinged door or
+a bottom-hinged flap carries it. Type, axis and limits must come out within stated tolerances."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from drawer_lib.errors import ConfigError
+from drawer_lib.perception.articulate import (assign_handles, decide, get_estimator, handle_clusters, infer_parts,
+                                              refine_with_masks)
+from drawer_lib.perception.config import ArticulateConfig
+from drawer_lib.perception.decompose import Segment, face_geometry
+
+CAMS = np.array([[0.3, -2.5, 1.0], [-0.5, -2.0, 1.2], [1.0, -2.2, 0.8]])
+X0, X1, Z0, Z1, Y = 0.0, 0.5, 0.1, 0.8, -0.6   # the front rectangle (m)
+
+
+def box(lo, hi) -> trimesh.Trimesh:
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return trimesh.creation.box(extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))
+
+
+def scene(handle: str | None):
+    """(mesh, face ids of the front's outer face). ``handle``: center | right | bottom | top | None."""
+    panel = box([X0, Y, Z0], [X1, Y + 0.019, Z1]).subdivide().subdivide().subdivide()
+    wall = box([-0.5, 0.0, 0.0], [1.0, 0.02, 1.2])  # the wall behind: 0.6 m carcass depth
+    parts = [panel, wall]
+    hc = {"center": (0.25, 0.45, "h"), "top": (0.25, 0.74, "h"), "right": (0.455, 0.7, "v"),
+          "bottom": (0.25, 0.16, "h")}.get(handle)
+    if hc is not None:
+        x, z, along = hc
+        half = (0.08, 0.006) if along == "h" else (0.006, 0.08)
+        parts.append(box([x - half[0], Y - 0.035, z - half[1]], [x + half[0], Y - 0.023, z + half[1]]).subdivide())
+    mesh = trimesh.util.concatenate(parts)
+    n = np.asarray(mesh.face_normals)
+    c = np.asarray(mesh.triangles_center)
+    outer = np.nonzero((n[:, 1] < -0.99) & (np.abs(c[:, 1] - Y) < 1e-6))[0]
+    return mesh, outer
+
+
+def segment(mesh, faces, labels=None) -> Segment:
+    nrm, area, cen, frac = face_geometry(mesh, faces, 30.0)
+    return Segment(0, faces, 1.0, 10, labels or {}, frac > 0.6, nrm, area, cen)
+
+
+def run(handle, labels=None, cfg=ArticulateConfig()):
+    mesh, outer = scene(handle)
+    return infer_parts(mesh, [segment(mesh, outer, labels)], CAMS, cfg)
+
+
+def check_front(p):
+    f = p.front
+    assert np.allclose(f.normal, [0, -1, 0], atol=1e-6) and np.allclose(f.u, [1, 0, 0], atol=1e-6)
+    assert np.allclose(f.center, [0.25, Y, 0.45], atol=0.01)  # 1 cm
+    assert np.allclose(f.size, [0.5, 0.7], atol=0.02)  # 2 cm
+
+
+def test_drawer_with_central_handle_pulls_out_by_the_carcass_depth():
+    parts, rep = run("center")
+    (p,) = parts
+    assert p.kind == "prismatic" and p.extra["family"] == "drawer"
+    check_front(p)
+    assert np.allclose(p.axis.direction, [0, -1, 0], atol=1e-6)  # outward: positive q opens
+    assert p.extra["carcass_depth"] == pytest.approx(0.6, abs=0.02)
+    assert p.limits == pytest.approx((0.0, 0.8 * 0.6), abs=0.02)
+    assert rep[0]["handle"]["orientation"] == "horizontal"
+
+
+def test_door_with_handle_on_the_right_is_hinged_left():
+    (p,), rep = run("right")
+    assert p.kind == "revolute" and p.extra["hinge"] == "left"
+    check_front(p)
+    assert np.allclose(p.axis.origin, [X0, Y, 0.45], atol=0.015)  # on the left edge
+    assert np.allclose(p.axis.direction, [0, 0, -1], atol=1e-6)  # right-hand rule opens outward
+    assert p.limits == pytest.approx((0.0, np.pi / 2))
+    # opening by a small angle moves the free edge outward (toward the cameras, -y)
+    from drawer_lib.geometry.joints import apply_transform, joint_transform
+
+    free = np.array([[X1, Y, 0.45]])
+    moved = apply_transform(joint_transform("revolute", np.array(p.axis.origin), np.array(p.axis.direction), 0.1), free)
+    assert moved[0, 1] < Y - 0.01
+
+
+def test_flap_with_handle_at_the_bottom_is_hinged_at_the_top():
+    (p,), _ = run("bottom")
+    assert p.kind == "revolute" and p.extra["hinge"] == "top"
+    assert np.allclose(p.axis.origin, [0.25, Y, Z1], atol=0.015)
+    assert np.allclose(p.axis.direction, [-1, 0, 0], atol=1e-6)
+
+
+def test_top_handle_is_a_drawer_unless_the_labels_say_door():
+    (p,), _ = run("top")
+    assert p.extra["family"] == "drawer"
+    (p,), _ = run("top", labels={"door": 9, "drawer": 2})
+    assert p.extra["family"] == "flap" and p.extra["hinge"] == "bottom"
+    (p,), _ = run("top", labels={"door": 9}, cfg=ArticulateConfig(use_labels=False))
+    assert p.extra["family"] == "drawer"  # labels are hints only, and can be switched off
+
+
+def test_no_handle_is_a_fixed_panel_and_degenerate_segments_are_reported():
+    parts, rep = run(None)
+    assert parts == [] and rep[0]["family"] == "fixed"
+    mesh, outer = scene("center")
+    one = segment(mesh, outer[:1])
+    parts, rep = infer_parts(mesh, [one], CAMS, ArticulateConfig())
+    assert parts == [] and "size" in rep[0]["reason"]  # a single face is far below min_size
+    # a horizontal panel (a counter top) is not a front
+    top = np.nonzero(np.asarray(mesh.face_normals)[:, 2] > 0.99)[0]
+    parts, rep = infer_parts(mesh, [segment(mesh, top)], CAMS, ArticulateConfig())
+    assert parts == [] and rep[0]["reason"] == "not vertical"
+
+
+def test_handles_between_two_fronts_go_to_the_one_they_reach_into():
+    from drawer_lib.io.parts import Front
+
+    upper = Front((0.25, Y, 0.6), (0, -1, 0), (1, 0, 0), (0.5, 0.2))
+    lower = Front((0.25, Y, 0.38), (0, -1, 0), (1, 0, 0), (0.5, 0.25))  # 2.5 cm too tall: overlaps upper
+    g = np.random.default_rng(0)
+    own_upper = np.array([0.25, Y - 0.01, 0.6]) + g.normal(0, 0.003, (20, 3))
+    edge_pull_lower = np.array([0.25, Y - 0.01, 0.475]) + g.normal(0, 0.003, (20, 3))  # at lower's top edge
+    pts = np.concatenate([own_upper, edge_pull_lower])
+    assert len(handle_clusters(pts, 0.015, 6)) == 2
+    got = assign_handles([upper, lower], pts, ArticulateConfig(), 0.015, 6)
+    assert np.allclose(got[0].mean(0), own_upper.mean(0)) and np.allclose(got[1].mean(0), edge_pull_lower.mean(0))
+
+
+def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
+    from drawer_lib.io.parts import Front
+
+    # camera at y = -2 looking +y (OpenCV: x right, y down, z forward)
+    w2c = np.array([[1, 0, 0, 0], [0, 0, -1, 0.45], [0, 1, 0, 2.0], [0, 0, 0, 1]], float)
+    K = (200.0, 200.0, 100.0, 100.0)
+    H = W = 200
+    yy, xx = np.mgrid[0:H, 0:W]
+
+    def mask(x0, x1, z0, z1):  # the rectangle's image, pixels whose centres fall inside
+        X = (xx + 0.5 - K[2]) / K[0] * 1.4  # depth to the plane: 2 - 0.6 = 1.4 m
+        Z = 0.45 - (yy + 0.5 - K[3]) / K[1] * 1.4
+        return (X >= x0) & (X <= x1) & (Z >= z0) & (Z <= z1)
+
+    rough = Front((0.0, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.4, 0.5))
+    full = [(mask(-0.25, 0.25, 0.1, 0.8), w2c, K)] * 3
+    f, used = refine_with_masks(rough, full)
+    assert used == 3 and np.allclose(f.size, [0.5, 0.7], atol=0.01) and np.allclose(f.center, [0, Y, 0.45], atol=0.005)
+    f2, _ = refine_with_masks(rough, [(mask(-0.25, 2.0, 0.1, 0.8), w2c, K)] * 3)  # runs off the right border
+    assert f2.size[0] == pytest.approx(0.25 + 0.2, abs=0.01)  # left edge from the masks, right edge kept
+
+
+def test_learned_estimator_slots_say_why_they_cannot_run():
+    assert get_estimator("geometric") is infer_parts
+    with pytest.raises(ConfigError, match="weights"):
+        get_estimator("3doi")
+    with pytest.raises(ConfigError, match="unknown"):
+        get_estimator("nope")
+    with pytest.raises(ConfigError):
+        ArticulateConfig(edge_frac=0.7)
