@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat clean
+.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -48,6 +48,9 @@ bench-video: setup ## video source on a rendered + encoded kitchen_small: regist
 bench-splat: setup ## CPU rasterizer fwd+bwd vs gsplat's pure-PyTorch path (installs gsplat 1.5.3 into .venv)
 	$(BIN)/pip install -q gsplat==1.5.3
 	$(BIN)/python scripts/bench_splat.py
+
+bench-articulation: setup ## decompose + articulate over 20 procedural kitchens: noisy, no and generic detections
+	$(BIN)/python scripts/bench_articulation.py
 
 bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro capture@kitchen_small

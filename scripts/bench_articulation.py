@@ -15,6 +15,7 @@ GT (DESIGN §6). Prints per-run rows and, per mode, precision / recall / EA-scor
 scene) and pooled over all parts; writes ``<out>/results.json`` and ``<out>/summary.md``.
 
     python scripts/bench_articulation.py [--n 20] [--modes noisy,generic,off] [--out /tmp/bench_articulation]
+    python scripts/bench_articulation.py --reuse     # after a perception change: same captures and meshes
 """
 
 import argparse
@@ -64,27 +65,35 @@ def scene_overrides(k: int) -> list[str]:
             f"scene.synth.layout.fixed_fronts={int(g.integers(0, 2))}"]
 
 
-def one(k: int, mode: str, out: Path) -> dict:
+def one(k: int, mode: str, out: Path, reuse: bool = False) -> dict:
     cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *scene_overrides(k)])
     scene = to_typed(SceneConfig, cfg.scene, "scene")
     capcfg = to_typed(CaptureConfig, cfg.capture, "capture")
     d = out / f"k{k:02d}_{mode}"
-    if d.exists():
-        shutil.rmtree(d)
     cap_dir = d / "capture"
-    cap_dir.mkdir(parents=True)
-    t0 = time.perf_counter()
-    build_capture(f"bench_{k}", scene, capcfg, cap_dir, np.random.default_rng(k), ROOT)
+    kept = reuse and (d / "mesh" / "mesh.ply").is_file()
+    if kept:  # perception only, on the capture and mesh of an earlier run
+        for stage in ("decompose", "articulate"):
+            shutil.rmtree(d / stage, ignore_errors=True)
+        prev = json.loads((d / "row.json").read_text()) if (d / "row.json").is_file() else {}
+        times = {t: prev.get(t, float("nan")) for t in ("capture_s", "sdf_s", "mesh_s")}
+    else:
+        if d.exists():
+            shutil.rmtree(d)
+        cap_dir.mkdir(parents=True)
+        t0 = time.perf_counter()
+        build_capture(f"bench_{k}", scene, capcfg, cap_dir, np.random.default_rng(k), ROOT)
+        times = {"capture_s": time.perf_counter() - t0}
     cap = load_capture(cap_dir)
     man = read_manifest(cap_dir / "manifest.json")
-    times = {"capture_s": time.perf_counter() - t0}
-    for stage, fn in (("sdf", lambda r, o: run_sdf(to_typed(SdfConfig, cfg.sdf, "sdf"), cap, man, r, o)),
-                      ("mesh", lambda r, o: run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(d / "sdf" / "field.pt"),
-                                                     cap, man, r, o)),
-                      ("decompose", lambda r, o: run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), cap,
-                                                               man, d / "mesh" / "mesh.ply", r, o)),
-                      ("articulate", lambda r, o: run_articulate(to_typed(ArticulateConfig, cfg.articulate, "articulate"),
-                                                                 cap, d / "decompose", o))):
+    stages = (("sdf", lambda r, o: run_sdf(to_typed(SdfConfig, cfg.sdf, "sdf"), cap, man, r, o)),
+              ("mesh", lambda r, o: run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(d / "sdf" / "field.pt"),
+                                             cap, man, r, o)),
+              ("decompose", lambda r, o: run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), cap, man,
+                                                       d / "mesh" / "mesh.ply", r, o)),
+              ("articulate", lambda r, o: run_articulate(to_typed(ArticulateConfig, cfg.articulate, "articulate"), cap,
+                                                         d / "decompose", o)))
+    for stage, fn in stages[2:] if kept else stages:
         t = time.perf_counter()
         o = d / stage
         o.mkdir()
@@ -93,8 +102,10 @@ def one(k: int, mode: str, out: Path) -> dict:
     res, details = articulation_metrics(read_parts(d / "articulate" / "parts.json"), read_parts(cap_dir / "gt" / "parts.json"),
                                         eval_views(cap))
     (d / "matches.json").write_text(json.dumps(details, indent=1))
-    return {"kitchen": k, "mode": mode, **res, **{t: round(v, 2) for t, v in times.items()},
-            "eas": [r["ea_score"] for r in details if r.get("ea_score") is not None]}
+    row = {"kitchen": k, "mode": mode, **res, **{t: round(v, 2) for t, v in times.items()},
+           "eas": [r["ea_score"] for r in details if r.get("ea_score") is not None]}
+    (d / "row.json").write_text(json.dumps(row))
+    return row
 
 
 def summary(rows: list[dict]) -> str:
@@ -124,16 +135,18 @@ def main() -> None:
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--modes", default="noisy,generic,off")
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_articulation"))
+    ap.add_argument("--reuse", action="store_true",
+                    help="rerun only decompose + articulate on the captures and meshes already under --out")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     res_path = a.out / "results.json"
-    rows = json.loads(res_path.read_text()) if res_path.exists() else []
+    rows = json.loads(res_path.read_text()) if res_path.exists() and not a.reuse else []
     done = {(r["kitchen"], r["mode"]) for r in rows}
     for mode in a.modes.split(","):
         for k in range(a.start, a.start + a.n):
             if (k, mode) in done:
                 continue
-            r = one(k, mode, a.out)
+            r = one(k, mode, a.out, a.reuse)
             rows.append(r)
             res_path.write_text(json.dumps(rows, indent=1))
             print(f"kitchen {k:2d} {mode:8s} P {r.get('precision', float('nan')):.3f} R {r['recall']:.3f} "

@@ -13,7 +13,7 @@ Per planar, vertical segment:
 
   | evidence | type |
   |---|---|
-  | handle near the left / right edge (a_u < f or > 1 - f) | door hinged on the far side |
+  | handle near the left / right edge (a_u < f or > 1 - f; a horizontal one within f / 2) | door hinged on the far side |
   | handle near the bottom edge | flap hinged at the top |
   | handle near the top edge | drawer, or a flap hinged at the bottom when the labels say door |
   | handle central | drawer |
@@ -156,11 +156,12 @@ def rect_distance(front: Front, p: np.ndarray, signed: bool = False) -> tuple[fl
 
 
 def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
-                   max_gap: float = 0.03) -> list[np.ndarray | None]:
+                   max_gap: float = 0.03, max_span: float = 0.85) -> list[np.ndarray | None]:
     """The handle of each front: every handle point goes to the front whose rectangle it lies
     deepest in (signed in-plane distance, negative inside; at most ``max_gap`` outside) among
     those it stands 0..``handle_max`` in front of; per front, the largest cluster of its points
-    (:func:`handle_clusters`). An edge pull straddling the gap between two fronts thus goes,
+    (:func:`handle_clusters`) that spans less than ``max_span`` of the front either way. An edge
+    pull straddling the gap between two fronts thus goes,
     point by point, mostly to the front it reaches into."""
     out: list[np.ndarray | None] = [None] * len(fronts)
     if len(fronts) == 0 or len(points) == 0:
@@ -177,8 +178,11 @@ def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfi
         ok = (h >= -0.01) & (h <= cfg.handle_max) & (d <= max_gap) & (d < best)
         best[ok] = d[ok]
         owner[ok] = k
-    for k in range(len(fronts)):
-        cl = handle_clusters(points[owner == k], radius, min_points)
+    for k, f in enumerate(fronts):
+        u, v = np.asarray(f.u), f.v
+        # a handle is shorter than its front: a cluster spanning it is a counter edge or a plinth
+        cl = [c for c in handle_clusters(points[owner == k], radius, min_points)
+              if np.ptp(c @ u) < max_span * f.size[0] and np.ptp(c @ v) < max_span * f.size[1]]
         if cl:
             out[k] = max(cl, key=len)
     return out
@@ -199,11 +203,20 @@ def describe_handle(front: Front, pts: np.ndarray | None, source: str) -> Handle
     return Handle(a_u, a_v, orient, int(len(pts)), source)
 
 
-def protrusions(front: Front, mesh_points: np.ndarray, cfg: ArticulateConfig) -> np.ndarray:
-    """Mesh points within the front rectangle and ``handle_min``..``handle_max`` in front of it."""
+def protrusions(front: Front, mesh_points: np.ndarray, normals: np.ndarray, cfg: ArticulateConfig) -> np.ndarray:
+    """Mesh points within the front rectangle and ``handle_min``..``handle_max`` in front of it,
+    except on surfaces facing up or down (a counter's overhang above a front, a shelf)."""
     rel = mesh_points - np.asarray(front.center)
     pu, pv, pn = rel @ np.asarray(front.u), rel @ front.v, rel @ np.asarray(front.normal)
     sel = (np.abs(pu) <= front.size[0] / 2) & (np.abs(pv) <= front.size[1] / 2) & (pn >= cfg.handle_min) & (pn <= cfg.handle_max)
+    sel &= np.abs(normals @ UP) < np.cos(np.deg2rad(30.0))
+    # full-width rows / full-height columns are a counter edge, a plinth, a carcass side: not handles
+    for coord, other, extent in ((pv, pu, front.size[0]), (pu, pv, front.size[1])):
+        bins = np.floor(coord / 0.01).astype(np.int64)
+        for b in np.unique(bins[sel]):
+            row = sel & (bins == b)
+            if np.ptp(other[row]) > 0.8 * extent:
+                sel &= ~row
     return mesh_points[sel]
 
 
@@ -212,8 +225,10 @@ def decide(h: Handle | None, labels: dict, cfg: ArticulateConfig) -> Decision:
     if h is None:
         return Decision("fixed", reason="no handle")
     f = cfg.edge_frac
-    if h.orientation != "horizontal" and (h.a_u < f or h.a_u > 1 - f):
-        return Decision("door", "right" if h.a_u < f else "left", "handle near a side edge")
+    side = h.a_u < f or h.a_u > 1 - f
+    if side and (h.orientation != "horizontal" or h.a_u < f / 2 or h.a_u > 1 - f / 2):
+        # doors carry their handle at the free side (a horizontal bar only right at the edge)
+        return Decision("door", "right" if h.a_u < 0.5 else "left", "handle near a side edge")
     if h.a_v < f:
         return Decision("flap", "top", "handle near the bottom edge")
     if h.a_v > 1 - f:
@@ -223,8 +238,8 @@ def decide(h: Handle | None, labels: dict, cfg: ArticulateConfig) -> Decision:
             if door_votes > drawer_votes:
                 return Decision("flap", "bottom", "handle near the top edge; labels say door")
         return Decision("drawer", reason="handle near the top edge")
-    if h.a_u < f or h.a_u > 1 - f:  # a horizontal bar near a side: still a side-hinged door
-        return Decision("door", "right" if h.a_u < f else "left", "handle near a side edge")
+    if side:  # a horizontal bar near a side, halfway up: still a side-hinged door
+        return Decision("door", "right" if h.a_u < 0.5 else "left", "handle near a side edge")
     return Decision("drawer", reason="central handle")
 
 
@@ -349,11 +364,28 @@ def get_estimator(name: str) -> Estimator:
     raise ConfigError(f"articulate.estimator = {name!r} is unknown (known: geometric, {sorted(_REGISTRY) + sorted(_SLOTS)})")
 
 
-def _sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: ArticulateConfig
-                      ) -> dict[int, tuple[int, float]]:
+def _local_step(fa: Front, fb: Front, pa: np.ndarray, pb: np.ndarray, band: float = 0.08) -> float:
+    """How far front b lies behind front a (m), measured on the segments' own points within
+    ``band`` of the line between them along the mean normal — not from the two centres, whose
+    lateral distance times a degree of plane-fit tilt would fake a step."""
+    n = np.asarray(fa.normal) + np.asarray(fb.normal)
+    n /= np.linalg.norm(n)
+    u = np.asarray(fa.u)
+    ca, cb = np.asarray(fa.center), np.asarray(fb.center)
+    mid = ca + u * np.sign((cb - ca) @ u) * fa.size[0] / 2  # a's edge facing b
+    near_a = pa[np.abs((pa - mid) @ u) < band]
+    near_b = pb[np.abs((pb - mid) @ u) < band]
+    if len(near_a) < 3 or len(near_b) < 3:
+        return float((ca - cb) @ n)
+    return float(np.median(near_a @ n) - np.median(near_b @ n))
+
+
+def _sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: ArticulateConfig,
+                      points: list[np.ndarray]) -> dict[int, tuple[int, float]]:
     """Sliding doors: a front standing out of the run by a step of ``sliding_step`` (the outer
-    panel on its own track) and the adjacent stepped-back front of the same height on the side
-    away from its handle (the inner panel). Returns {front: (partner, overlap in u (m))} for
+    panel on its own track; measured locally, :func:`_local_step`) and the adjacent
+    stepped-back front of the same height on the side away from its handle (the inner panel).
+    ``points``: each front's segment points. Returns {front: (partner, overlap in u (m))} for
     both panels of each pair; the outer one is paired first and only once."""
     out: dict[int, tuple[int, float]] = {}
     cands = []
@@ -363,10 +395,12 @@ def _sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: Ar
             if a == b or np.dot(na, fb.normal) < 0.95:
                 continue
             dc = np.asarray(fb.center) - np.asarray(fa.center)
-            step = -(dc @ na)  # > 0: b lies behind a
+            du = dc @ ua
+            if (fa.size[0] + fb.size[0]) / 2 - abs(du) < -0.04:  # not adjacent
+                continue
+            step = _local_step(fa, fb, points[a], points[b])  # > 0: b lies behind a
             if not cfg.sliding_step[0] <= step <= cfg.sliding_step[1]:
                 continue
-            du = dc @ ua
             overlap_u = (fa.size[0] + fb.size[0]) / 2 - abs(du)
             same_h = abs(fa.size[1] - fb.size[1]) < 0.15 * max(fa.size[1], fb.size[1]) and abs(dc @ fa.v) < 0.1 * fa.size[1]
             if overlap_u > -0.04 and same_h:
@@ -415,7 +449,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         fits.append((s, front, {"rect_from_masks": used}))
     fronts = [f for _, f, _ in fits]
     # handles: clusters of handle-mask faces and of mesh protrusions, each given to one front
-    geo = [protrusions(f, mesh_pts, cfg) for f in fronts]
+    geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
     hit = fc[handle_hits >= 2] if handle_hits is not None else np.zeros((0, 3))
     by_geo = assign_handles(fronts, geo_pts, cfg, 0.015, 10)
@@ -423,7 +457,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     by_mask = assign_handles(fronts, hit, cfg, max(0.015, 1.5 * spacing), 3)
     handles = [describe_handle(f, m, "masks") if m is not None else describe_handle(f, g, "geometry")
                for f, g, m in zip(fronts, by_geo, by_mask)]
-    partner = _sliding_partners(fronts, handles, cfg)
+    seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
+    partner = _sliding_partners(fronts, handles, cfg, seg_pts)
     counts: dict[str, int] = {}
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         if k in partner:

@@ -29,11 +29,11 @@ class DecomposeConfig:
     ``max_faces``: the mesh is decimated to this many faces first (DRAWER: 80k at full
     resolution), cut to what the train views see, then split until no edge exceeds ``max_edge``.
     ``erode_px``: masks are eroded before their faces are collected, unless that would remove
-    half of a mask (DRAWER: 4 at 1080p). Graph: mesh-adjacent faces are joined with weight = the number of masks holding both;
-    edges seen in fewer than ``min_cooccur`` masks, or in fewer than ``min_rate`` of the frames
-    that see both faces, are dropped (this removes one-off false masks and the borders between
-    fronts that merged masks bridge now and then), and so are edges whose dihedral angle exceeds
-    ``max_dihedral``; the weight is that rate. Louvain (networkx, seeded)
+    half of a mask (DRAWER: 4 at 1080p). Graph: mesh-adjacent faces are joined with weight = the rate at which masks hold
+    both (over the frames that see both); edges held by fewer than ``min_cooccur`` masks or in
+    fewer than ``min_rate`` of those frames are dropped (this removes one-off false masks and the
+    borders between fronts that merged masks bridge now and then), and so are edges whose
+    dihedral angle exceeds ``max_dihedral``. Louvain (networkx, seeded)
     runs at every resolution in ``resolutions``; communities of at least ``min_faces`` faces are
     candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
     least ``min_px_frac`` of the image area of it with the frame's masks; ``score`` = median best IoU, kept when
@@ -56,7 +56,7 @@ class DecomposeConfig:
     resolutions: list[float] = field(default_factory=lambda: [0.1, 0.5, 1.0, 2.0, 5.0, 10.0])
     min_faces: int = 15
     min_px_frac: float = 0.0015
-    min_score: float = 0.6
+    min_score: float = 0.55
     min_frames: int = 2
     dup_overlap: float = 0.3
     grow: bool = True
