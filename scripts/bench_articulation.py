@@ -46,7 +46,7 @@ from drawer_lib.sdf.config import SdfConfig  # noqa: E402
 from drawer_lib.sdf.io import load_field  # noqa: E402
 from drawer_lib.sdf.pipeline import run_sdf  # noqa: E402
 
-MODE_FILE = {"noisy": "noisy", "generic": "noisy_generic", "off": "off"}
+MODE_FILE = {"noisy": "noisy", "generic": "noisy_generic", "off": "off"}  # also the order of the summary
 
 
 def compose(overrides: list[str]):
@@ -140,18 +140,21 @@ def main() -> None:
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     res_path = a.out / "results.json"
-    rows = json.loads(res_path.read_text()) if res_path.exists() and not a.reuse else []
+    rows = json.loads(res_path.read_text()) if res_path.exists() else []
+    todo = [(k, mode) for mode in a.modes.split(",") for k in range(a.start, a.start + a.n)]
+    if a.reuse:  # recompute these rows
+        rows = [r for r in rows if (r["kitchen"], r["mode"]) not in set(todo)]
     done = {(r["kitchen"], r["mode"]) for r in rows}
-    for mode in a.modes.split(","):
-        for k in range(a.start, a.start + a.n):
-            if (k, mode) in done:
-                continue
-            r = one(k, mode, a.out, a.reuse)
-            rows.append(r)
-            res_path.write_text(json.dumps(rows, indent=1))
-            print(f"kitchen {k:2d} {mode:8s} P {r.get('precision', float('nan')):.3f} R {r['recall']:.3f} "
-                  f"EA {r.get('ea_score', float('nan')):.4f} ({r['n_correct']}/{r['n_pred'] - r['n_ignored']} pred, "
-                  f"{r['n_gt']} GT) perception {r['decompose_s'] + r['articulate_s']:.1f} s", flush=True)
+    for k, mode in todo:
+        if (k, mode) in done:
+            continue
+        r = one(k, mode, a.out, a.reuse)
+        rows.append(r)
+        res_path.write_text(json.dumps(rows, indent=1))
+        print(f"kitchen {k:2d} {mode:8s} P {r.get('precision', float('nan')):.3f} R {r['recall']:.3f} "
+              f"EA {r.get('ea_score', float('nan')):.4f} ({r['n_correct']}/{r['n_pred'] - r['n_ignored']} pred, "
+              f"{r['n_gt']} GT) perception {r['decompose_s'] + r['articulate_s']:.1f} s", flush=True)
+    rows.sort(key=lambda r: (list(MODE_FILE).index(r["mode"]), r["kitchen"]))
     md = summary(rows)
     (a.out / "summary.md").write_text(md)
     print(md)
