@@ -12,7 +12,7 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import scene_of, stage_dir
+from drawer_lib.config.stage import geometry_dir, scene_of, stage_dir
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.perception.config import ArticulateConfig
@@ -25,7 +25,7 @@ from drawer_lib.runner import main_guard, stage_run
 def main(cfg: DictConfig) -> None:
     scene, _ = scene_of(cfg)
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
-    cap = load_capture(Path(cfg.paths.out) / scene / "capture", check_files=False)
+    cap = load_capture(geometry_dir(cfg, scene, "capture", output=False), check_files=False)
     seg_dir = Path(cfg.paths.out) / scene / "decompose"
     with stage_run("articulate", stage_dir(cfg, scene, "articulate"), seed=cfg.seed) as run:
         run.metrics.update(run_articulate(ac, cap, seg_dir, run.dir))

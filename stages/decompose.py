@@ -6,12 +6,10 @@
     python -m stages.decompose scene=kitchen_small decompose.source=geometric   # without detections
 """
 
-from pathlib import Path
-
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import scene_of, stage_dir
+from drawer_lib.config.stage import geometry_dir, scene_of, stage_dir
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.manifest import read_manifest
@@ -25,10 +23,10 @@ from drawer_lib.runner import main_guard, stage_run
 def main(cfg: DictConfig) -> None:
     scene, _ = scene_of(cfg)
     dc = to_typed(DecomposeConfig, cfg.decompose, "decompose")
-    cap_dir = Path(cfg.paths.out) / scene / "capture"
+    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
     manifest = read_manifest(cap_dir / "manifest.json")
     cap = load_capture(cap_dir)
-    mesh = Path(cfg.paths.out) / scene / "mesh" / "mesh.ply"
+    mesh = geometry_dir(cfg, scene, "mesh", output=False) / "mesh.ply"
     with stage_run("decompose", stage_dir(cfg, scene, "decompose"), seed=cfg.seed) as run:
         run.metrics.update(run_decompose(dc, cap, manifest, mesh, run, run.dir))
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import scene_of, stage_dir
+from drawer_lib.config.stage import geometry_dir, scene_of, stage_dir
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.manifest import read_manifest
 from drawer_lib.perception.pipeline import run_evaluate
@@ -21,7 +21,7 @@ from drawer_lib.runner import main_guard, stage_run
 @main_guard
 def main(cfg: DictConfig) -> None:
     scene, _ = scene_of(cfg)
-    cap_dir = Path(cfg.paths.out) / scene / "capture"
+    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
     manifest = read_manifest(cap_dir / "manifest.json")
     cap = load_capture(cap_dir, check_files=False)
     parts = Path(cfg.paths.out) / scene / "articulate" / "parts.json"

@@ -36,18 +36,11 @@ import numpy as np
 import trimesh
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.io.parts import Axis, Front, Part, PartsFile
+from drawer_lib.io.parts import Axis, Front, Part
 from drawer_lib.perception.config import ArticulateConfig
 from drawer_lib.perception.decompose import Segment
+from drawer_lib.perception.views import UP
 
-UP = np.array([0.0, 0.0, 1.0])
-
-
-@dataclass
-class FrontFit:
-    front: Front
-    points_uv: np.ndarray  # [N, 2] segment points in the front frame (u, v) about the centre
-    inlier_frac: float
 
 
 @dataclass
@@ -85,7 +78,7 @@ def _sample_points(mesh: trimesh.Trimesh, faces: np.ndarray, per_m2: float = 400
     return (pts, np.concatenate([faces, faces[k]])) if with_faces else pts
 
 
-def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: np.ndarray, inlier_m: float = 0.01) -> FrontFit | None:
+def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: np.ndarray, inlier_m: float = 0.01) -> Front | None:
     """The front rectangle of a planar segment, or None for a degenerate one."""
     P = _sample_points(mesh, seg.faces)
     if len(P) < 3:
@@ -123,8 +116,7 @@ def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: np.ndarray, inli
     off = float(np.percentile((Q - c) @ n, 90))  # the outer face of the panel
     center = c + mid[0] * u + mid[1] * v + off * n
     size = hi - lo
-    fr = Front(tuple(center.tolist()), tuple(n.tolist()), tuple(u.tolist()), (float(size[0]), float(size[1])))
-    return FrontFit(fr, uv - mid, float(inl.mean()))
+    return Front(tuple(center.tolist()), tuple(n.tolist()), tuple(u.tolist()), (float(size[0]), float(size[1])))
 
 
 def handle_clusters(points: np.ndarray, radius: float = 0.015, min_points: int = 6) -> list[np.ndarray]:
@@ -140,19 +132,6 @@ def handle_clusters(points: np.ndarray, radius: float = 0.015, min_points: int =
     A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else coo_matrix((n, n))
     _, lab = connected_components(A, directed=False)
     return [points[lab == k] for k in np.unique(lab) if (lab == k).sum() >= min_points]
-
-
-def rect_distance(front: Front, p: np.ndarray, signed: bool = False) -> tuple[float, float]:
-    """(in-plane distance of point p to the front rectangle: 0 inside, or with ``signed`` minus
-    the distance to the nearest edge; height of p above the front plane)."""
-    rel = np.asarray(p) - np.asarray(front.center)
-    eu = abs(rel @ np.asarray(front.u)) - front.size[0] / 2
-    ev = abs(rel @ front.v) - front.size[1] / 2
-    if eu <= 0 and ev <= 0:
-        d = max(eu, ev) if signed else 0.0
-    else:
-        d = float(np.hypot(max(eu, 0.0), max(ev, 0.0)))
-    return float(d), float(rel @ np.asarray(front.normal))
 
 
 def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
@@ -432,16 +411,16 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             n_obj += 1
             report.append({"segment": s.id, "family": "rigid", "reason": "not planar"})
             continue
-        ff = fit_front(mesh, s, cam_centers)
-        if ff is None:
+        fitted = fit_front(mesh, s, cam_centers)
+        if fitted is None:
             report.append({"segment": s.id, "family": "none", "reason": "degenerate plane"})
             continue
-        if abs(np.dot(ff.front.normal, UP)) > sin_v:
+        if abs(np.dot(fitted.normal, UP)) > sin_v:
             report.append({"segment": s.id, "family": "none", "reason": "not vertical"})
             continue
-        front, used = ff.front, 0
+        front, used = fitted, 0
         if masks_of is not None:
-            front, used = refine_with_masks(ff.front, masks_of(s))
+            front, used = refine_with_masks(fitted, masks_of(s))
         w, h = front.size
         if min(w, h) < cfg.min_size or max(w, h) > cfg.max_size:
             report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
@@ -491,7 +470,3 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             parts.append(Part(pid, "prismatic", Axis(fr.center, tuple(u.tolist())), (0.0, float(travel)), fr, extra=extra))
         row["part"] = pid
     return parts, report
-
-
-def parts_file(parts: list[Part]) -> PartsFile:
-    return PartsFile(tuple(parts))

@@ -61,14 +61,19 @@ class Segment:
                 "matched": [[str(a), int(b)] for a, b in self.matched]}
 
 
-def lift_masks(cap: Capture, views: MeshViews, erode_px: int) -> tuple[list[MaskRecord], np.ndarray]:
+def read_detections(cap: Capture, views: MeshViews) -> list[tuple[np.ndarray, list[dict]]]:
+    """(label map [H, W], detections) of every view, read once."""
+    return [cap.detections(i) for i in views.frames]
+
+
+def lift_masks(detections: list[tuple[np.ndarray, list[dict]]], views: MeshViews, erode_px: int
+               ) -> tuple[list[MaskRecord], np.ndarray]:
     """The detections of every view as face sets; also [F] per-face count of "handle" mask hits."""
     from scipy import ndimage
 
     recs: list[MaskRecord] = []
     handle_hits = np.zeros(views.n_faces, np.int64)
-    for t, i in enumerate(views.frames):
-        lab, dets = cap.detections(i)
+    for t, (lab, dets) in enumerate(detections):
         for d in dets:
             m = lab == int(d["id"])
             if erode_px > 0:  # not when that would take most of a small mask away
@@ -103,7 +108,7 @@ def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, ma
 
 
 def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, resolutions, min_faces: int,
-                       seed: int, all_edges: np.ndarray) -> list[np.ndarray]:
+                       seed: int) -> list[np.ndarray]:
     """Communities (face-id arrays, each its largest connected component) over all resolutions,
     exact duplicates removed."""
     import networkx as nx
@@ -132,14 +137,14 @@ def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, res
     return out
 
 
-def backprojection_scores(cands: list[np.ndarray], views: MeshViews, cap: Capture, masks: list[MaskRecord],
-                          min_px: int, progress=lambda it, **kw: it) -> list[tuple[float, int, Counter, list[tuple[int, int]]]]:
+def backprojection_scores(cands: list[np.ndarray], views: MeshViews, label_maps: list[np.ndarray],
+                          masks: list[MaskRecord], min_px: int, progress=lambda it, **kw: it) -> list[tuple[float, int, Counter, list[tuple[int, int]]]]:
     """Per candidate: (median over frames of the best mask IoU, frames used, label votes,
     [(view, mask id)] of the masks it matches with IoU >= 0.5)."""
     by_view: dict[int, list[MaskRecord]] = {}
     for r in masks:
         by_view.setdefault(r.view, []).append(r)
-    labs = [cap.detections(i)[0].astype(np.int64) for i in views.frames]
+    labs = [lb.astype(np.int64) for lb in label_maps]
     label_of = {(r.view, r.det_id): r.label for r in masks}
     F = views.n_faces
     sizes = [np.bincount(lb.ravel(), minlength=int(lb.max()) + 1) for lb in labs]
@@ -216,14 +221,13 @@ def select_segments(cands: list[np.ndarray], scores: list[tuple], mesh: trimesh.
     return segs
 
 
-def grow_segments(segs: list[Segment], matched: list[list[tuple[int, int]]], views: MeshViews, cap: Capture,
-                  edges: np.ndarray, cfg: DecomposeConfig) -> None:
+def grow_segments(segs: list[Segment], matched: list[list[tuple[int, int]]], views: MeshViews,
+                  label_maps: list[np.ndarray], edges: np.ndarray, cfg: DecomposeConfig) -> None:
     """Complete each segment from the (un-eroded) masks it matched: a face joins when it lies
     under the segment's mask in >= half of the matched frames that see it (>= 2 of them), its
     normal agrees with a planar segment's, and it connects to the segment. A face two segments
     claim goes to the higher rate. Edits ``segs`` in place (faces, area, centroid, normal)."""
     F = views.n_faces
-    labs: dict[int, np.ndarray] = {}
     normals = np.asarray(views.mesh.face_normals)
     best_rate = np.zeros(F)
     owner = np.full(F, -1, np.int64)
@@ -232,10 +236,8 @@ def grow_segments(segs: list[Segment], matched: list[list[tuple[int, int]]], vie
         votes = np.zeros(F, np.int64)
         seen = np.zeros(F, np.int64)
         for t, d in mt:
-            if t not in labs:
-                labs[t] = cap.detections(views.frames[t])[0]
             seen[views.face_px[t] >= 0] += 1
-            votes[views.faces_under(t, labs[t] == d)] += 1
+            votes[views.faces_under(t, label_maps[t] == d)] += 1
         rate = votes / np.maximum(seen, 1)
         ok = (rate >= 0.5) & (votes >= 2)
         if s.planar:
@@ -266,19 +268,21 @@ def face_labels(n_faces: int, segs: list[Segment]) -> np.ndarray:
 def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConfig,
                               progress=lambda it, **kw: it) -> tuple[list[Segment], np.ndarray, dict]:
     """(segments, [F] handle-mask hits per face, counts)."""
-    masks, handle_hits = lift_masks(cap, views, cfg.erode_px)
+    detections = read_detections(cap, views)
+    label_maps = [lab for lab, _ in detections]
+    masks, handle_hits = lift_masks(detections, views, cfg.erode_px)
     edges, dih = adjacency_edges(views.mesh)
     visible = views.face_frames()
     ge, gw = cooccurrence_graph(views.n_faces, edges, dih, masks, visible, cfg.min_cooccur, cfg.min_rate,
                                 cfg.max_dihedral)
-    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, edges)
+    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed)
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
-    scores = backprojection_scores(cands, views, cap, masks, min_px, progress)
+    scores = backprojection_scores(cands, views, label_maps, masks, min_px, progress)
     segs = select_segments(cands, scores, views.mesh, cfg)
     for sg in segs:
         sg.matched = [(cap.frames[views.frames[t]].stem, d) for t, d in scores[sg.source_candidate][3]]
     if cfg.grow:
-        grow_segments(segs, [scores[s.source_candidate][3] for s in segs], views, cap, edges, cfg)
+        grow_segments(segs, [scores[s.source_candidate][3] for s in segs], views, label_maps, edges, cfg)
     info = {"masks": len(masks), "graph_edges": int(len(ge)), "candidates": len(cands), "segments": len(segs),
             "planar_segments": sum(s.planar for s in segs), "handle_faces": int((handle_hits > 0).sum())}
     return segs, handle_hits, info

@@ -20,9 +20,8 @@ import numpy as np
 from drawer_lib.io.capture import Capture
 from drawer_lib.perception.config import DecomposeConfig, GeometricConfig
 from drawer_lib.perception.decompose import Segment, face_geometry
-from drawer_lib.perception.views import MeshViews, adjacency_edges, connected_components
+from drawer_lib.perception.views import UP, MeshViews, adjacency_edges, connected_components
 
-UP = np.array([0.0, 0.0, 1.0])
 
 
 def vertical_regions(views: MeshViews, g: GeometricConfig) -> list[np.ndarray]:
@@ -40,7 +39,7 @@ def vertical_regions(views: MeshViews, g: GeometricConfig) -> list[np.ndarray]:
     return out
 
 
-def _facade(views: MeshViews, cap: Capture, faces: np.ndarray, g: GeometricConfig):
+def _facade(views: MeshViews, cap: Capture, images: list[np.ndarray], faces: np.ndarray, g: GeometricConfig):
     """Plane frame (c, n, u, v), grid origin/shape, occupancy (the plane point is the surface a
     view sees), height of the mesh above the plane, median colour."""
     mesh = views.mesh
@@ -83,7 +82,7 @@ def _facade(views: MeshViews, cap: Capture, faces: np.ndarray, g: GeometricConfi
         d = np.zeros(len(flat))
         d[ok] = views.depth_maps[t][yi[ok], xi[ok]]
         ok &= np.abs(d - z) < 0.02  # visible: the mesh's first hit is this point
-        img = cap.image(i).astype(np.float32) / 255.0
+        img = images[t]
         col = np.full((len(flat), 3), np.nan, np.float32)
         col[ok] = img[yi[ok], xi[ok]]
         cols.append(col)
@@ -146,8 +145,9 @@ def decompose_geometric(cap: Capture, views: MeshViews, g: GeometricConfig, cfg:
     segs: list[Segment] = []
     regions = vertical_regions(views, g)
     min_cells = max(int(round(g.min_front / g.cell)), 1)
+    images = [cap.image(i).astype(np.float32) / 255.0 for i in views.frames]  # read once, not per region
     for faces in regions:
-        (c, nrm, u, v), lo, shape, occ, height, colour = _facade(views, cap, faces, g)
+        (c, nrm, u, v), lo, shape, occ, height, colour = _facade(views, cap, images, faces, g)
         du, dv = _edge_strength(colour, height)
         ref = np.concatenate([du.ravel(), dv.ravel()])
         if len(ref) == 0:

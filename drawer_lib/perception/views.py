@@ -10,6 +10,8 @@ from drawer_lib.errors import InputError
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 
+UP = np.array([0.0, 0.0, 1.0])  # world up (DESIGN §4: +z)
+
 
 def perception_mesh(mesh: trimesh.Trimesh, max_faces: int, max_edge: float, cap: Capture | None = None,
                     frames: list[int] | None = None) -> trimesh.Trimesh:
@@ -72,11 +74,6 @@ class MeshViews:
         px = self.face_px[t]
         vis = np.nonzero(px >= 0)[0]
         return vis[mask.ravel()[px[vis]]]
-
-    def face_pixels(self) -> np.ndarray:
-        """[F] number of pixels each face covers, summed over the views."""
-        fm = self.face_maps[self.face_maps >= 0]
-        return np.bincount(fm, minlength=self.n_faces)
 
 
 def _face_pixels(mesh: trimesh.Trimesh, cap: Capture, i: int, depth: np.ndarray, tol: float = 0.01) -> np.ndarray:
