@@ -36,7 +36,8 @@ class DecomposeConfig:
     dihedral angle exceeds ``max_dihedral``. Louvain (networkx, seeded)
     runs at every resolution in ``resolutions``; communities of at least ``min_faces`` faces are
     candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
-    least ``min_px_frac`` of the image area of it with the frame's masks; ``score`` = median best IoU, kept when
+    least ``min_px_frac`` of the image area of it with the frame's masks, not counting the pixels
+    within ``band_px`` of the silhouette's border; ``score`` = median best IoU, kept when
     >= ``min_score`` over >= ``min_frames`` frames. Greedy by score: a candidate more than
     ``dup_overlap`` of which better segments already hold is a duplicate.
     ``grow``: each segment is then completed from the whole (un-eroded) masks it matched, by a
@@ -56,6 +57,7 @@ class DecomposeConfig:
     resolutions: list[float] = field(default_factory=lambda: [0.1, 0.5, 1.0, 2.0, 5.0, 10.0])
     min_faces: int = 15
     min_px_frac: float = 0.0015
+    band_px: int = 2
     min_score: float = 0.55
     min_frames: int = 2
     dup_overlap: float = 0.3
@@ -72,6 +74,8 @@ class DecomposeConfig:
             raise ConfigError(f"decompose.resolutions = {self.resolutions} must be positive numbers")
         if not 0 < self.min_score <= 1 or not 0 < self.dup_overlap <= 1:
             raise ConfigError("decompose: min_score and dup_overlap must be in (0, 1]")
+        if self.band_px < 0:
+            raise ConfigError(f"decompose.band_px = {self.band_px} must be >= 0")
         if self.max_faces < 100 or self.min_faces < 1:
             raise ConfigError("decompose: max_faces >= 100 and min_faces >= 1")
 

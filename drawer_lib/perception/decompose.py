@@ -137,10 +137,38 @@ def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, res
     return out
 
 
+def tolerant_ious(sil: np.ndarray, lab: np.ndarray, sizes: np.ndarray, band_px: int) -> np.ndarray:
+    """IoU [K] of the silhouette ``sil`` [H, W] with every mask id of the label map ``lab``
+    [H, W] (``sizes`` [K]: pixels per id), not counting the pixels within ``band_px`` of the
+    silhouette's border either way: intersection = mask pixels inside the eroded silhouette,
+    union = eroded silhouette + mask pixels outside the dilated one. A ragged mask border or a
+    mesh edge off by a pixel then costs nothing, which matters for a front a dozen pixels tall.
+    ``band_px`` 0 (or a silhouette the erosion would empty) gives the plain IoU."""
+    from scipy import ndimage
+
+    K = len(sizes)
+    if band_px > 0:
+        ys, xs = np.nonzero(sil)
+        pad = band_px + 1
+        y0, y1 = max(ys.min() - pad, 0), min(ys.max() + pad + 1, sil.shape[0])
+        x0, x1 = max(xs.min() - pad, 0), min(xs.max() + pad + 1, sil.shape[1])
+        crop, lc = sil[y0:y1, x0:x1], lab[y0:y1, x0:x1]
+        sq = np.ones((3, 3), bool)  # the band is in the Chebyshev (8-neighbour) distance
+        inner = ndimage.binary_erosion(crop, sq, iterations=band_px, border_value=0)
+        if inner.any():
+            outer = ndimage.binary_dilation(crop, sq, iterations=band_px)
+            inter = np.bincount(lc[inner], minlength=K)
+            in_outer = np.bincount(lc[outer], minlength=K)
+            return inter / np.maximum(int(inner.sum()) + sizes - in_outer, 1)
+    inter = np.bincount(lab[sil], minlength=K)
+    return inter / np.maximum(int(sil.sum()) + sizes - inter, 1)
+
+
 def backprojection_scores(cands: list[np.ndarray], views: MeshViews, label_maps: list[np.ndarray],
-                          masks: list[MaskRecord], min_px: int, progress=lambda it, **kw: it) -> list[tuple[float, int, Counter, list[tuple[int, int]]]]:
-    """Per candidate: (median over frames of the best mask IoU, frames used, label votes,
-    [(view, mask id)] of the masks it matches with IoU >= 0.5)."""
+                          masks: list[MaskRecord], min_px: int, band_px: int = 0,
+                          progress=lambda it, **kw: it) -> list[tuple[float, int, Counter, list[tuple[int, int]]]]:
+    """Per candidate: (median over frames of the best mask IoU (:func:`tolerant_ious`), frames
+    used, label votes, [(view, mask id)] of the masks it matches with IoU >= 0.5)."""
     by_view: dict[int, list[MaskRecord]] = {}
     for r in masks:
         by_view.setdefault(r.view, []).append(r)
@@ -155,26 +183,19 @@ def backprojection_scores(cands: list[np.ndarray], views: MeshViews, label_maps:
         ious, votes, matched = [], Counter(), []
         for t in range(len(views.frames)):
             sil = views.silhouette(t, member)
-            n = int(sil.sum())
-            if n < min_px:
+            if int(sil.sum()) < min_px:
                 continue
-            lab = labs[t]
-            ids = [r.det_id for r in by_view.get(t, [])]
-            if not ids:
+            ids = np.array([r.det_id for r in by_view.get(t, [])], np.int64)
+            if not len(ids):
                 ious.append(0.0)
                 continue
-            inter = np.bincount(lab[sil], minlength=int(lab.max()) + 1)
-            size = sizes[t]
-            best, best_id = 0.0, None
-            for d in ids:
-                if d < len(inter):
-                    iou = inter[d] / (n + size[d] - inter[d])
-                    if iou > best:
-                        best, best_id = float(iou), d
+            iou = tolerant_ious(sil, labs[t], sizes[t], band_px)[ids]
+            j = int(iou.argmax())
+            best = float(iou[j])
             ious.append(best)
-            if best_id is not None and best >= 0.5:
-                votes[label_of[(t, best_id)]] += 1
-                matched.append((t, best_id))
+            if best >= 0.5:
+                votes[label_of[(t, int(ids[j]))]] += 1
+                matched.append((t, int(ids[j])))
         res.append((float(np.median(ious)) if ious else 0.0, len(ious), votes, matched))
     return res
 
@@ -277,7 +298,7 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
                                 cfg.max_dihedral)
     cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed)
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
-    scores = backprojection_scores(cands, views, label_maps, masks, min_px, progress)
+    scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress)
     segs = select_segments(cands, scores, views.mesh, cfg)
     for sg in segs:
         sg.matched = [(cap.frames[views.frames[t]].stem, d) for t, d in scores[sg.source_candidate][3]]

@@ -24,8 +24,8 @@ def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
 
 def table(rows: dict, variants: list[str]) -> tuple[str, dict]:
     lines = ["| scene | variant | PSNR ↑ | SSIM ↑ | LPIPS ↓ | Gaussians | in bounds | raw param at a bound "
-             "(pos / tilt / any) | training (s) | paper PSNR/SSIM/LPIPS |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "(pos / tilt / any) | steps | training (s) | paper PSNR/SSIM/LPIPS |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     js: dict = {}
     for s, vs in rows.items():
         for v in variants:
@@ -37,9 +37,10 @@ def table(rows: dict, variants: list[str]) -> tuple[str, dict]:
             act = ("–" if "at_bound_any" not in m else
                    " / ".join(f"{100 * m[f'at_bound_{k}']:.0f} %" for k in ("position", "tilt", "any")))
             lines.append(f"| {s} | {v} | {m['psnr']:.2f} | {m['ssim']:.3f} | {m['lpips']:.3f} | "
-                         f"{m.get('n_gaussians', '–')} | {inb} | {act} | {m.get('train_s', float('nan')):.1f} | {paper} |")
-            js.setdefault(s, {})[v] = {k: m.get(k) for k in ("psnr", "ssim", "lpips", "n_gaussians", "train_s",
-                                                              "within_face_bounds")}
+                         f"{m.get('n_gaussians', '–')} | {inb} | {act} | {m.get('steps', '–')} | "
+                         f"{m.get('train_s', float('nan')):.1f} | {paper} |")
+            js.setdefault(s, {})[v] = {k: m.get(k) for k in ("psnr", "ssim", "lpips", "n_gaussians", "steps",
+                                                              "train_s", "within_budget", "within_face_bounds")}
             js[s][v].update({k: val for k, val in m.items() if k.startswith("at_bound_")})
     return "\n".join(lines) + "\n", js
 

@@ -1,5 +1,6 @@
 """Config of the ``appearance`` stage (conf/appearance/<variant>.yaml). Lengths in metres."""
 
+from typing import Optional
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
@@ -63,7 +64,8 @@ class AppearanceConfig:
     static: bool = False
     max_faces: int = 30000
     steps: int = 2000
-    max_seconds: float = 300.0
+    max_seconds: Optional[float] = None  # optional safety cap; None: the schedule is by steps only
+    budget_s: float = 300.0  # the target training time, reported (within_budget) not enforced
     sh_degree: int = 3
     sh_every: int = 500  # the SH degree used rises by one every this many steps
     init_opacity: float = 0.1
@@ -86,5 +88,7 @@ class AppearanceConfig:
             raise ConfigError(f"appearance.texture_source = {self.texture_source!r} must be sdf or images")
         if not 0 <= self.sh_degree <= 3:
             raise ConfigError(f"appearance.sh_degree = {self.sh_degree} must be in [0, 3]")
+        if self.max_seconds is not None and not self.max_seconds > 0:
+            raise ConfigError(f"appearance.max_seconds = {self.max_seconds} must be > 0 or null (no cap)")
         if self.steps < 1 or self.max_faces < 10:
             raise ConfigError("appearance: need steps >= 1 and max_faces >= 10")

@@ -71,7 +71,8 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
         write_face_binding(model / "binding.npz", st.params.face, st.frames.face_ids, a.pos2d, a.elevate)
         sc.mesh.export(model / "anchor_mesh.ply")
         m.update({"n_gaussians": int(st.params.face.shape[0]), "steps": st.steps, "train_s": round(st.train_s, 3),
-                  "stopped_by_time": st.stopped_by_time, "within_face_bounds": violation is None, **st.counts})
+                  "stopped_by_time": st.stopped_by_time,
+                  "within_budget": st.train_s <= cfg.budget_s, "within_face_bounds": violation is None, **st.counts})
         if cfg.clip != "free":  # where the clips act at the end (hard: zero gradient there; ste: identity)
             m.update({f"at_bound_{k}": round(v, 4) for k, v in bound_activity(st.params, st.frames, cfg.bounds).items()})
     _write_renders(out, cap, res)

@@ -209,7 +209,7 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
         train_s += time.perf_counter() - t0
         if on_eval is not None and step > 0 and step % cfg.eval_every == 0:
             on_eval(step, train_s, p, frames)
-        if train_s > cfg.max_seconds:
+        if cfg.max_seconds is not None and train_s > cfg.max_seconds:
             stopped = True
             break
     steps_done = step + 1

@@ -158,3 +158,14 @@ def test_conf_files_are_plain_yaml():
     for p in Path(CONF / "scene").glob("*.yaml"):
         text = p.read_text()
         assert "${" not in text and "defaults:" not in text, p
+
+
+def test_appearance_schedule_is_by_steps_with_an_optional_time_cap():
+    from drawer_lib.errors import ConfigError
+
+    cfg = compose_cfg([])
+    app = to_typed(AppearanceConfig, cfg.appearance, "appearance")
+    assert app.max_seconds is None and app.budget_s > 0  # the default: no cap, the budget is reported
+    assert AppearanceConfig(max_seconds=60.0).max_seconds == 60.0
+    with pytest.raises(ConfigError, match="appearance.max_seconds"):
+        AppearanceConfig(max_seconds=0.0)

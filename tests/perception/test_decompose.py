@@ -13,7 +13,7 @@ from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import articulation_metrics
 from drawer_lib.perception.config import ArticulateConfig, DecomposeConfig
-from drawer_lib.perception.decompose import MaskRecord, cooccurrence_graph, face_geometry
+from drawer_lib.perception.decompose import MaskRecord, cooccurrence_graph, face_geometry, tolerant_ious
 from drawer_lib.runner import StageRun
 from drawer_lib.perception.pipeline import load_segments, run_articulate, run_decompose, eval_views
 
@@ -110,3 +110,52 @@ def test_config_errors_name_the_key():
         DecomposeConfig(source="sam")
     with pytest.raises(ConfigError, match="resolutions"):
         DecomposeConfig(resolutions=[0.0])
+    with pytest.raises(ConfigError, match="decompose.band_px"):
+        DecomposeConfig(band_px=-1)
+
+
+def _tolerant_iou_reference(sil, mask, band):
+    """Per pixel: Chebyshev distance to the nearest pixel of the other class (inside <-> outside
+    the silhouette); pixels closer than ``band`` + 1 to the border are not counted."""
+    H, W = sil.shape
+    yy, xx = np.mgrid[:H, :W]
+    inter = union = 0
+    for y in range(H):
+        for x in range(W):
+            other = sil != sil[y, x]
+            # out-of-image pixels count as outside the silhouette
+            d = np.max(np.abs(np.stack([yy[other] - y, xx[other] - x])), axis=0).min() if other.any() else 10 ** 9
+            if sil[y, x]:
+                d = min(d, y + 1, x + 1, H - y, W - x)
+            if d <= band:
+                continue
+            inter += bool(sil[y, x] and mask[y, x])
+            union += bool(sil[y, x] or mask[y, x])
+    return inter / max(union, 1)
+
+
+def test_tolerant_iou_ignores_a_band_at_the_border_and_matches_a_slow_reference():
+    H, W = 20, 40
+    sil = np.zeros((H, W), bool)
+    sil[4:16, 5:35] = True  # a front 12 px tall
+    g = np.random.default_rng(0)
+    lab = np.zeros((H, W), np.int64)
+    lab[5:17, 4:34] = 1  # the same front, off by a pixel each way
+    lab[:3, :] = 2  # a mask away from it
+    rag = sil.copy()  # a ragged border: +-2 px noise
+    for x in range(W):
+        rag[max(4 + g.integers(-2, 3), 0):16 + g.integers(-2, 3), x] = sil[:, x].any()
+    lab[rag & (lab == 0)] = 3
+    sizes = np.bincount(lab.ravel(), minlength=4)
+    for band in (0, 1, 2):
+        got = tolerant_ious(sil, lab, sizes, band)
+        for k in (1, 2, 3):
+            assert got[k] == pytest.approx(_tolerant_iou_reference(sil, lab == k, band)), (band, k)
+    plain, tol = tolerant_ious(sil, lab, sizes, 0), tolerant_ious(sil, lab, sizes, 2)
+    assert plain[1] < 0.85 and tol[1] == pytest.approx(1.0)  # off by one pixel: no cost within the band
+    assert tol[2] == 0.0
+    # a silhouette the erosion empties (2 px tall) falls back to the plain IoU
+    thin = np.zeros((H, W), bool)
+    thin[8:10, 5:35] = True
+    lab2 = np.where(thin, 1, 0)
+    assert tolerant_ious(thin, lab2, np.bincount(lab2.ravel(), minlength=2), 2)[1] == pytest.approx(1.0)
