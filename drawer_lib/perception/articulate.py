@@ -39,8 +39,7 @@ from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Axis, Front, Part
 from drawer_lib.perception.config import ArticulateConfig
 from drawer_lib.perception.decompose import Segment
-from drawer_lib.perception.views import UP
-
+from drawer_lib.perception.views import UP, connected_components, plane_axes
 
 
 @dataclass
@@ -49,7 +48,7 @@ class Handle:
     a_v: float  # bottom -> top
     orientation: str  # horizontal | vertical | round
     n_points: int
-    source: str  # geometry | masks | both
+    source: str  # geometry (mesh protrusions) | masks (handle detections)
 
 
 @dataclass
@@ -101,11 +100,7 @@ def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: np.ndarray, inli
     view = cam_centers - c
     if np.sum(view @ n > 0) < len(cam_centers) / 2:
         n = -n
-    u = np.cross(UP, n)
-    if np.linalg.norm(u) < 1e-6:  # a horizontal front: u along world x
-        u = np.cross(np.array([0.0, 1.0, 0.0]), n)
-    u /= np.linalg.norm(u)
-    v = np.cross(n, u)
+    u, v = plane_axes(n)
     d = (P - c) @ n
     inl = np.abs(d - np.median(d)) < inlier_m
     Q = P[inl] if inl.sum() >= 3 else P
@@ -123,14 +118,10 @@ def handle_clusters(points: np.ndarray, radius: float = 0.015, min_points: int =
     """Handle candidates: points [N, 3] grouped by single linkage at ``radius`` (m)."""
     if len(points) < min_points:
         return []
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
-    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
-    n = len(points)
-    A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else coo_matrix((n, n))
-    _, lab = connected_components(A, directed=False)
+    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.int64).reshape(-1, 2)
+    lab = connected_components(len(points), pairs)
     return [points[lab == k] for k in np.unique(lab) if (lab == k).sum() >= min_points]
 
 
@@ -319,7 +310,7 @@ def _rigid(seg: Segment, mesh: trimesh.Trimesh, k: int) -> Part:
 
 
 # -- learned estimators (slots) ------------------------------------------------------------------
-Estimator = Callable[..., list[Part]]
+Estimator = Callable[..., tuple[list[Part], list[dict]]]
 _REGISTRY: dict[str, Estimator] = {}
 _SLOTS = {"3doi": "3DOI (SAM-transformer ViT-B, checkpoint_20230515.pth)",
           "vlm": "a vision-language model (DRAWER: GPT-4o through the OpenAI API)"}
@@ -327,7 +318,7 @@ _SLOTS = {"3doi": "3DOI (SAM-transformer ViT-B, checkpoint_20230515.pth)",
 
 def register_estimator(name: str, fn: Estimator) -> None:
     """Make ``articulate.estimator: <name>`` call ``fn(mesh, segments, cam_centers, cfg, **kw)``
-    -> list of parts."""
+    -> (parts, per-segment decisions), like :func:`infer_parts`."""
     _REGISTRY[name] = fn
 
 
@@ -375,14 +366,14 @@ def _sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: Ar
                 continue
             dc = np.asarray(fb.center) - np.asarray(fa.center)
             du = dc @ ua
-            if (fa.size[0] + fb.size[0]) / 2 - abs(du) < -0.04:  # not adjacent
+            overlap_u = (fa.size[0] + fb.size[0]) / 2 - abs(du)
+            if overlap_u <= -0.04:  # not adjacent
                 continue
             step = _local_step(fa, fb, points[a], points[b])  # > 0: b lies behind a
             if not cfg.sliding_step[0] <= step <= cfg.sliding_step[1]:
                 continue
-            overlap_u = (fa.size[0] + fb.size[0]) / 2 - abs(du)
             same_h = abs(fa.size[1] - fb.size[1]) < 0.15 * max(fa.size[1], fb.size[1]) and abs(dc @ fa.v) < 0.1 * fa.size[1]
-            if overlap_u > -0.04 and same_h:
+            if same_h:
                 h = handles[a]
                 away = 0.0 if h is None else np.sign(0.5 - h.a_u)  # the side away from the handle
                 cands.append((away != 0 and np.sign(du) != away, -overlap_u, a, b, overlap_u))

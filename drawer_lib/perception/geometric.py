@@ -20,8 +20,8 @@ import numpy as np
 from drawer_lib.io.capture import Capture
 from drawer_lib.perception.config import DecomposeConfig, GeometricConfig
 from drawer_lib.perception.decompose import Segment, face_geometry
-from drawer_lib.perception.views import UP, MeshViews, adjacency_edges, connected_components
-
+from drawer_lib.geometry.camera import project_points
+from drawer_lib.perception.views import UP, MeshViews, adjacency_edges, connected_components, plane_axes
 
 
 def vertical_regions(views: MeshViews, g: GeometricConfig) -> list[np.ndarray]:
@@ -44,9 +44,7 @@ def _facade(views: MeshViews, cap: Capture, images: list[np.ndarray], faces: np.
     view sees), height of the mesh above the plane, median colour."""
     mesh = views.mesh
     nrm, _, c, _ = face_geometry(mesh, faces, 30.0)
-    u = np.cross(UP, nrm)
-    u /= max(np.linalg.norm(u), 1e-12)
-    v = np.cross(nrm, u)
+    u, v = plane_axes(nrm)
     tri = np.asarray(mesh.triangles)[faces]
     pts = tri.reshape(-1, 3)
     uv = np.stack([(pts - c) @ u, (pts - c) @ v], -1)
@@ -71,13 +69,10 @@ def _facade(views: MeshViews, cap: Capture, images: list[np.ndarray], faces: np.
     cols = []
     flat = P.reshape(-1, 3)
     for t, i in enumerate(views.frames):
-        w2c = cap.frames[i].w2c
-        pc = flat @ w2c[:3, :3].T + w2c[:3, 3]
-        z = pc[:, 2]
+        uv, z = project_points(flat, cap.frames[i].w2c, it)
         ok = z > 1e-3
-        x = np.where(ok, it.fx * pc[:, 0] / np.where(ok, z, 1) + it.cx, -1)
-        y = np.where(ok, it.fy * pc[:, 1] / np.where(ok, z, 1) + it.cy, -1)
-        xi, yi = np.floor(x).astype(int), np.floor(y).astype(int)
+        uv = np.where(ok[:, None], uv, -1.0)
+        xi, yi = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
         ok &= (xi >= 0) & (xi < it.width) & (yi >= 0) & (yi < it.height)
         d = np.zeros(len(flat))
         d[ok] = views.depth_maps[t][yi[ok], xi[ok]]
