@@ -20,19 +20,44 @@ def _gauss_window(size: int, sigma: float, dtype: torch.dtype) -> Tensor:
     return g / g.sum()
 
 
-def ssim(x: Float[Tensor, "B C H W"], y: Float[Tensor, "B C H W"], size: int = 11, sigma: float = 1.5) -> Float[Tensor, "B"]:
-    """Mean SSIM per image over channels and the valid (unpadded) window positions."""
-    if x.shape != y.shape or x.shape[-1] < size or x.shape[-2] < size:
-        raise ValueError(f"ssim: images must share a shape of at least {size}x{size}, got {tuple(x.shape)}, {tuple(y.shape)}")
+def _blur(t: Tensor, size: int, sigma: float) -> Tensor:
+    """Separable Gaussian blur of every channel of [B, C, H, W], valid region only."""
+    C = t.shape[1]
+    g = _gauss_window(size, sigma, t.dtype)
+    t = F.conv2d(t, g.view(1, 1, 1, size).expand(C, 1, 1, size), groups=C)
+    return F.conv2d(t, g.view(1, 1, size, 1).expand(C, 1, size, 1), groups=C)
+
+
+def _check(x: Tensor, size: int) -> None:
+    if x.dim() != 4 or x.shape[-1] < size or x.shape[-2] < size:
+        raise ValueError(f"ssim: images must be [B, C, H, W] of at least {size}x{size}, got {tuple(x.shape)}")
+
+
+def ssim_target_stats(y: Float[Tensor, "B C H W"], size: int = 11, sigma: float = 1.5) -> Float[Tensor, "B C2 h w"]:
+    """The target's local mean and variance (mu_y, sigma_yy stacked on channels: C2 = 2C; h, w
+    the valid region) for :func:`ssim` ``y_stats=``: a training loop against fixed images
+    computes them once."""
+    _check(y, size)
+    C = y.shape[1]
+    b = _blur(torch.cat([y, y * y], 1), size, sigma)
+    my = b[:, :C]
+    return torch.cat([my, b[:, C:] - my * my], 1)
+
+
+def ssim(x: Float[Tensor, "B C H W"], y: Float[Tensor, "B C H W"], size: int = 11, sigma: float = 1.5,
+         y_stats: Tensor | None = None) -> Float[Tensor, "B"]:
+    """Mean SSIM per image over channels and the valid (unpadded) window positions.
+    ``y_stats``: :func:`ssim_target_stats` of ``y`` (saves two of the five blurs)."""
+    if x.shape != y.shape:
+        raise ValueError(f"ssim: images must share a shape, got {tuple(x.shape)}, {tuple(y.shape)}")
+    _check(x, size)
     C = x.shape[1]
-    g = _gauss_window(size, sigma, x.dtype)
-    wx = g.view(1, 1, 1, size).repeat(C, 1, 1, 1)
-    wy = g.view(1, 1, size, 1).repeat(C, 1, 1, 1)
-    blur = lambda t: F.conv2d(F.conv2d(t, wx, groups=C), wy, groups=C)  # noqa: E731
-    mx, my = blur(x), blur(y)
-    sxx = blur(x * x) - mx * mx
-    syy = blur(y * y) - my * my
-    sxy = blur(x * y) - mx * my
+    if y_stats is None:
+        y_stats = ssim_target_stats(y, size, sigma)
+    b = _blur(torch.cat([x, x * x, x * y], 1), size, sigma)  # one batched blur of the three x-terms
+    mx, my, syy = b[:, :C], y_stats[:, :C], y_stats[:, C:]
+    sxx = b[:, C:2 * C] - mx * mx
+    sxy = b[:, 2 * C:] - mx * my
     c1, c2 = 0.01**2, 0.03**2
     s = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
     return s.flatten(1).mean(1)

@@ -82,6 +82,17 @@ def _span(m, r, lo, n):
     return a, b
 
 
+@njit(cache=True, inline="always")
+@no_type_check
+def _p_min(op):
+    """A bound below which op exp(p) < ALPHA_MIN for sure (a margin of 1e-6 under the exact
+    log(ALPHA_MIN / op)): such pixels are skipped without an exp; the exact test after the exp
+    still decides at the boundary, so the result is unchanged."""
+    if op <= 0.0:
+        return np.inf
+    return np.log(ALPHA_MIN / op) - 1e-6
+
+
 @njit(parallel=True, cache=True)
 @no_type_check
 def composite_forward(means2d, conics, opacities, colors, depths, radii, offsets, ids, width, height, tile,
@@ -116,6 +127,7 @@ def composite_forward(means2d, conics, opacities, colors, depths, radii, offsets
                 continue
             ca, cb, cc, op = conics[g, 0], conics[g, 1], conics[g, 2], opacities[g]
             c0, c1, c2, z = colors[g, 0], colors[g, 1], colors[g, 2], depths[g]
+            p_min = _p_min(op)
             for py in range(ya, yb):
                 dy = my - (py + 0.5)
                 iy = py - py0
@@ -125,7 +137,7 @@ def composite_forward(means2d, conics, opacities, colors, depths, radii, offsets
                         continue
                     dx = mx - (px + 0.5)
                     p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                    if p > 0.0:
+                    if p > 0.0 or p < p_min:
                         continue
                     a = min(ALPHA_MAX, op * np.exp(p))
                     if a < ALPHA_MIN:
@@ -191,6 +203,7 @@ def composite_backward(means2d, conics, opacities, colors, depths, radii, offset
                     continue
                 ca, cb, cc, op = conics[g, 0], conics[g, 1], conics[g, 2], opacities[g]
                 cr, cg, cbl, z = colors[g, 0], colors[g, 1], colors[g, 2], depths[g]
+                p_min = _p_min(op)
                 a_mx = 0.0
                 a_my = 0.0
                 a_a = 0.0
@@ -213,7 +226,7 @@ def composite_backward(means2d, conics, opacities, colors, depths, radii, offset
                         ix = px - px0
                         dx = mx - (px + 0.5)
                         p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                        if p > 0.0:
+                        if p > 0.0 or p < p_min:
                             continue
                         G = np.exp(p)
                         a0 = op * G

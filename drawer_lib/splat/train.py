@@ -12,7 +12,7 @@ import trimesh
 from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
-from drawer_lib.metrics.image import psnr, ssim
+from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
 from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, check_bounds, face_frames, init_anchored
 from drawer_lib.splat.config import AppearanceConfig
 from drawer_lib.splat.mesh_color import (colored_mesh_at_resolution, face_colors, mesh_depths, render_face_colored,
@@ -142,7 +142,7 @@ def _optimizer(p: AnchoredParams, cfg: AppearanceConfig) -> torch.optim.Adam:
         setattr(p, name, par)
         if not frozen:
             groups.append({"params": [par], "lr": rates[name], "name": name})
-    return torch.optim.Adam(groups, eps=1e-15)
+    return torch.optim.Adam(groups, eps=1e-15, fused=True)
 
 
 def render_params(p: AnchoredParams, frames: FaceFrames, cfg: AppearanceConfig, cam: Camera, sh_degree: int,
@@ -171,6 +171,8 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
     w = cfg.losses
     n_img = len(sc.train_cams)
     size = max(it.width, it.height)
+    with torch.no_grad():  # the D-SSIM target's local mean / variance, once per train image
+        gt_stats = [ssim_target_stats(im.permute(2, 0, 1)[None]) for im in sc.train_rgb]
     train_s, stopped, step = 0.0, False, 0
     counts = {"split": 0, "dup": 0, "culled": 0}
     for step in progress(range(cfg.steps), desc="train", total=cfg.steps):
@@ -181,7 +183,7 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
         out, scales = render_params(p, frames, cfg, sc.train_cams[k], deg, bg)
         gt = sc.train_rgb[k]
         x, y = out.rgb.permute(2, 0, 1)[None], gt.permute(2, 0, 1)[None]
-        loss = w.l1 * (out.rgb - gt).abs().mean() + w.dssim * (1 - ssim(x, y)[0])
+        loss = w.l1 * (out.rgb - gt).abs().mean() + w.dssim * (1 - ssim(x, y, y_stats=gt_stats[k])[0])
         if w.alpha > 0:
             loss = loss + w.alpha * F.relu(0.95 - out.alpha).mean()
         if w.mesh_depth > 0:

@@ -7,7 +7,7 @@ import pytest
 import torch
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
-from drawer_lib.metrics.image import psnr, ssim
+from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
 
 
 def pair(seed=0, H=40, W=52):
@@ -39,3 +39,18 @@ def test_ssim_matches_skimage():
 def test_ssim_refuses_small_images():
     with pytest.raises(ValueError, match="11x11"):
         ssim(torch.rand(1, 3, 8, 8), torch.rand(1, 3, 8, 8))
+
+
+def test_ssim_with_cached_target_stats_equals_plain():
+    """The training loop's path (target statistics computed once) gives the same value and the
+    same gradient as the plain call (float64)."""
+    x, y = pair(3)
+    x, y = x.double(), y.double()
+    x1 = x.clone().requires_grad_(True)
+    x2 = x.clone().requires_grad_(True)
+    a, b = ssim(x1, y), ssim(x2, y, y_stats=ssim_target_stats(y))
+    assert torch.allclose(a, b, rtol=0, atol=1e-12)
+    a.sum().backward()
+    b.sum().backward()
+    assert torch.allclose(x1.grad, x2.grad, rtol=0, atol=1e-12)
+    assert ssim_target_stats(y).shape == (2, 6, y.shape[2] - 10, y.shape[3] - 10)
