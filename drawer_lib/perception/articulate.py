@@ -280,6 +280,57 @@ def _mask_uv(front: Front, mk, border_px: int) -> tuple[np.ndarray, np.ndarray] 
     return np.stack([rel @ np.asarray(front.u), rel @ front.v], -1), border[ok]
 
 
+def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, min_overlap: float = 0.5,
+                max_angle_deg: float = 10.0) -> list[Front]:
+    """Fronts whose facing edges abut (coplanar within ``plane_tol`` m, same axes within
+    ``max_angle_deg``, gap between the edges under ``max_gap`` m either way, overlapping over
+    ``min_overlap`` of the shorter side) have one boundary, estimated independently from each
+    front's masks: both edges move to the midpoint of the two estimates (the mean of the
+    midpoints when an edge has several neighbours), halving the variance of a hinge edge that
+    a neighbour shares. A sliding pair, a track apart, is not coplanar and is left alone.
+    ``max_gap`` <= 0 returns the fronts unchanged."""
+    if max_gap <= 0 or len(fronts) < 2:
+        return fronts
+    cos_t = np.cos(np.deg2rad(max_angle_deg))
+    # per front: (lo_u, hi_u, lo_v, hi_v) in its own frame
+    ext = [[-f.size[0] / 2, f.size[0] / 2, -f.size[1] / 2, f.size[1] / 2] for f in fronts]
+    props: list[list[list[float]]] = [[[], [], [], []] for _ in fronts]
+    for i, a in enumerate(fronts):
+        ca, na, ua, va = np.asarray(a.center), np.asarray(a.normal), np.asarray(a.u), a.v
+        for j in range(i + 1, len(fronts)):
+            b = fronts[j]
+            nb, ub = np.asarray(b.normal), np.asarray(b.u)
+            d = np.asarray(b.center) - ca
+            if na @ nb < cos_t or ua @ ub < cos_t or abs(d @ na) > plane_tol:
+                continue
+            du, dv = d @ ua, d @ va  # b's centre in a's frame
+            bw, bh = b.size[0] / 2, b.size[1] / 2
+            for ax, off, (alo, ahi), (blo, bhi), (olo, ohi), (oblo, obhi) in (
+                    (0, du, ext[i][0:2], (du - bw, du + bw), ext[i][2:4], (dv - bh, dv + bh)),
+                    (1, dv, ext[i][2:4], (dv - bh, dv + bh), ext[i][0:2], (du - bw, du + bw))):
+                overlap = min(ohi, obhi) - max(olo, oblo)
+                if overlap < min_overlap * min(ohi - olo, obhi - oblo):
+                    continue
+                k = 2 * ax  # index of lo along this axis in (lo_u, hi_u, lo_v, hi_v)
+                if off > 0 and abs(blo - ahi) < max_gap:  # b beyond a's high edge
+                    m = (ahi + blo) / 2
+                    props[i][k + 1].append(m)
+                    props[j][k].append(m - off)
+                elif off < 0 and abs(alo - bhi) < max_gap:  # b beyond a's low edge
+                    m = (alo + bhi) / 2
+                    props[i][k].append(m)
+                    props[j][k + 1].append(m - off)
+    out = []
+    for f, e, pr in zip(fronts, ext, props):
+        e = [float(np.mean(x)) if x else y for x, y in zip(pr, e)]
+        if e[1] <= e[0] or e[3] <= e[2]:
+            out.append(f)
+            continue
+        c = np.asarray(f.center) + (e[0] + e[1]) / 2 * np.asarray(f.u) + (e[2] + e[3]) / 2 * f.v
+        out.append(Front(tuple(c.tolist()), f.normal, f.u, (e[1] - e[0], e[3] - e[2])))
+    return out
+
+
 def hinge_axis(front: Front, hinge: str) -> Axis:
     c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
     v = front.v
@@ -417,7 +468,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
             continue
         fits.append((s, front, {"rect_from_masks": used}))
-    fronts = [f for _, f, _ in fits]
+    fronts = share_edges([f for _, f, _ in fits], cfg.shared_edge_gap, plane_tol=0.75 * cfg.sliding_step[0])
+    fits = [(s, f, info) for (s, _, info), f in zip(fits, fronts)]
     # handles: clusters of handle-mask faces and of mesh protrusions, each given to one front
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))

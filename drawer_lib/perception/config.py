@@ -92,7 +92,9 @@ class ArticulateConfig:
     ``handle_min``..``handle_max`` in front of the front plane within its rectangle (or faces
     that "handle" masks hit). A front smaller than ``min_size`` (either side) is not a part.
     Revolute limits default to ``revolute_limit_deg``; drawer travel is ``drawer_travel`` x the
-    carcass depth the mesh shows behind the front (``default_depth`` when it shows none)."""
+    carcass depth the mesh shows behind the front (``default_depth`` when it shows none).
+    Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
+    other share one boundary: the mean of the two estimates."""
 
     estimator: str = "geometric"
     use_labels: bool = True
@@ -106,6 +108,7 @@ class ArticulateConfig:
     drawer_travel: float = 0.8
     default_depth: float = 0.5
     sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
+    shared_edge_gap: float = 0.025
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:
@@ -114,5 +117,7 @@ class ArticulateConfig:
             raise ConfigError(f"articulate.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if not 0 < self.handle_min < self.handle_max:
             raise ConfigError("articulate: need 0 < handle_min < handle_max")
+        if self.shared_edge_gap < 0:
+            raise ConfigError(f"articulate.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
         if self.revolute_limit_deg <= 0 or self.drawer_travel <= 0:
             raise ConfigError("articulate: revolute_limit_deg and drawer_travel must be positive")

@@ -8,7 +8,7 @@ import trimesh
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.perception.articulate import (assign_handles, decide, get_estimator, handle_clusters, infer_parts,
-                                              refine_with_masks)
+                                              refine_with_masks, share_edges)
 from drawer_lib.perception.config import ArticulateConfig
 from drawer_lib.perception.decompose import Segment, face_geometry
 
@@ -145,6 +145,35 @@ def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
     assert used == 3 and np.allclose(f.size, [0.5, 0.7], atol=0.01) and np.allclose(f.center, [0, Y, 0.45], atol=0.005)
     f2, _ = refine_with_masks(rough, [(mask(-0.25, 2.0, 0.1, 0.8), w2c, K)] * 3)  # runs off the right border
     assert f2.size[0] == pytest.approx(0.25 + 0.2, abs=0.01)  # left edge from the masks, right edge kept
+
+
+def test_abutting_fronts_share_one_boundary():
+    """Two doors side by side whose masks put the shared edge at x = 0.49 and 0.51 (truth 0.50)
+    both end at 0.50; a drawer stacked on the right door shares its bottom edge likewise; a
+    front a track (10 mm) behind (a sliding pair) and one 5 cm away keep their edges."""
+    from drawer_lib.io.parts import Front
+
+    def front(x0, x1, z0, z1, y=Y):
+        return Front(((x0 + x1) / 2, y, (z0 + z1) / 2), (0, -1, 0), (1, 0, 0), (x1 - x0, z1 - z0))
+
+    def edges(f):
+        return (f.center[0] - f.size[0] / 2, f.center[0] + f.size[0] / 2, f.center[2] - f.size[1] / 2,
+                f.center[2] + f.size[1] / 2)
+
+    a, b = front(0.0, 0.49, 0.1, 0.8), front(0.51, 1.0, 0.1, 0.6)
+    top = front(0.51, 1.0, 0.612, 0.8)  # the gap above b: 12 mm, truth at 0.606
+    slide = front(1.005, 1.5, 0.1, 0.8, y=Y - 0.010)
+    far = front(-0.55, -0.05, 0.1, 0.8)
+    got = share_edges([a, b, top, slide, far], max_gap=0.025, plane_tol=0.006)
+    ea, eb, et, es, ef = (edges(f) for f in got)
+    assert ea[1] == pytest.approx(0.50) and eb[0] == pytest.approx(0.50)
+    assert eb[3] == pytest.approx(0.606) and et[2] == pytest.approx(0.606)
+    assert et[0] == pytest.approx(0.50)  # the drawer's left edge also abuts the left door
+    assert eb[1] == pytest.approx(1.0) and es == pytest.approx(edges(slide)) and ef == pytest.approx(edges(far))
+    assert ea[0] == pytest.approx(0.0) and ea[2:] == pytest.approx((0.1, 0.8))
+    assert share_edges([a, b], max_gap=0.0) == [a, b]  # off
+    with pytest.raises(ConfigError, match="shared_edge_gap"):
+        ArticulateConfig(shared_edge_gap=-0.01)
 
 
 def test_learned_estimator_slots_say_why_they_cannot_run():
