@@ -33,7 +33,6 @@ def main() -> None:
     from hydra import compose, initialize_config_dir
 
     from drawer_lib.config.typed import to_typed
-    from drawer_lib.errors import InputError
     from drawer_lib.io.capture import load_capture
     from drawer_lib.splat.config import AppearanceConfig
     from drawer_lib.splat.train import prepare, train_gaussians
@@ -46,7 +45,7 @@ def main() -> None:
     out = ROOT / cfg.paths.out / args.scene
     mesh_path = out / "mesh" / "mesh.ply"
     if not mesh_path.is_file():
-        raise SystemExit(str(InputError(f"{mesh_path}: missing (run `dvc repro mesh@{args.scene}` first)")))
+        raise SystemExit(f"{mesh_path}: missing (run `dvc repro mesh@{args.scene}` first)")
     cap = load_capture(out / "capture")
     sc = prepare(cap, trimesh.load(mesh_path, process=False), app)
     prof = cProfile.Profile()
