@@ -16,6 +16,8 @@ scene) and pooled over all parts; writes ``<out>/results.json`` and ``<out>/summ
 
     python scripts/bench_articulation.py [--n 20] [--modes noisy,generic,off] [--out /tmp/bench_articulation]
     python scripts/bench_articulation.py --reuse     # after a perception change: same captures and meshes
+    python scripts/bench_articulation.py --reuse --set articulate.handle_evidence=view_rate
+                                     # a config variant: results_<overrides>.json / summary_<overrides>.md
 """
 
 import argparse
@@ -65,8 +67,9 @@ def scene_overrides(k: int) -> list[str]:
             f"scene.synth.layout.fixed_fronts={int(g.integers(0, 2))}"]
 
 
-def one(k: int, mode: str, out: Path, reuse: bool = False) -> dict:
-    cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *scene_overrides(k)])
+def one(k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...] = ()) -> dict:
+    cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *scene_overrides(k),
+                   *extra])
     scene = to_typed(SceneConfig, cfg.scene, "scene")
     capcfg = to_typed(CaptureConfig, cfg.capture, "capture")
     d = out / f"k{k:02d}_{mode}"
@@ -137,9 +140,15 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_articulation"))
     ap.add_argument("--reuse", action="store_true",
                     help="rerun only decompose + articulate on the captures and meshes already under --out")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a Hydra override of the perception configs (repeatable); with --reuse on the same captures")
     a = ap.parse_args()
+    bad = [o for o in a.set if not o.startswith(("decompose.", "articulate."))]
+    if bad:
+        sys.exit(f"--set {bad[0]}: only decompose.* / articulate.* overrides (the captures and meshes are shared)")
     a.out.mkdir(parents=True, exist_ok=True)
-    res_path = a.out / "results.json"
+    tag = "".join("_" + "".join(c if c.isalnum() or c in ".=-" else "-" for c in o) for o in a.set)
+    res_path = a.out / f"results{tag}.json"
     rows = json.loads(res_path.read_text()) if res_path.exists() else []
     todo = [(k, mode) for mode in a.modes.split(",") for k in range(a.start, a.start + a.n)]
     if a.reuse:  # recompute these rows
@@ -148,7 +157,9 @@ def main() -> None:
     for k, mode in todo:
         if (k, mode) in done:
             continue
-        r = one(k, mode, a.out, a.reuse)
+        if a.set and not (a.out / f"k{k:02d}_{mode}" / "mesh" / "mesh.ply").is_file():
+            sys.exit(f"--set needs the captures and meshes of a plain run under {a.out}: k{k:02d}_{mode} is missing")
+        r = one(k, mode, a.out, a.reuse or bool(a.set), tuple(a.set))
         rows.append(r)
         res_path.write_text(json.dumps(rows, indent=1))
         print(f"kitchen {k:2d} {mode:8s} P {r.get('precision', float('nan')):.3f} R {r['recall']:.3f} "
@@ -156,7 +167,7 @@ def main() -> None:
               f"{r['n_gt']} GT) perception {r['decompose_s'] + r['articulate_s']:.1f} s", flush=True)
     rows.sort(key=lambda r: (list(MODE_FILE).index(r["mode"]), r["kitchen"]))
     md = summary(rows)
-    (a.out / "summary.md").write_text(md)
+    (a.out / f"summary{tag}.md").write_text(md)
     print(md)
 
 

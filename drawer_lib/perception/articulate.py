@@ -6,8 +6,10 @@ Per planar, vertical segment:
   outward normal toward the cameras that saw it, ``u`` horizontal, the rectangle from robust
   (2nd-98th percentile) extents of the segment's points in (u, v);
 - **handle**: mesh points within the rectangle and ``handle_min``..``handle_max`` in front of
-  the plane, plus faces hit by "handle" masks; their centroid in the front's unit square
-  (a_u left->right, a_v bottom->top) and their elongation (horizontal, vertical or round);
+  the plane, plus faces hit by "handle" masks; per front the largest cluster (by face count, or
+  with ``handle_evidence: view_rate`` by the fraction of the views seeing each face in which a
+  mask covers it), its median in the front's unit square (a_u left->right, a_v bottom->top)
+  and its elongation (horizontal, vertical or round);
 - **type** (the rule DRAWER applies to the 3DOI affordance peak, reference §3.10(c), with the
   handle in place of the peak):
 
@@ -115,27 +117,34 @@ def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: np.ndarray, inli
 
 
 def handle_clusters(points: np.ndarray, radius: float = 0.015, min_points: int = 6) -> list[np.ndarray]:
-    """Handle candidates: points [N, 3] grouped by single linkage at ``radius`` (m)."""
+    """Handle candidates: indices into ``points`` [N, 3] of the groups that single linkage at
+    ``radius`` (m) forms, each of at least ``min_points``."""
     if len(points) < min_points:
         return []
     from scipy.spatial import cKDTree
 
     pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.int64).reshape(-1, 2)
     lab = connected_components(len(points), pairs)
-    return [points[lab == k] for k in np.unique(lab) if (lab == k).sum() >= min_points]
+    return [np.nonzero(lab == k)[0] for k in np.unique(lab) if (lab == k).sum() >= min_points]
 
 
 def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
-                   max_gap: float = 0.03, max_span: float = 0.85) -> list[np.ndarray | None]:
-    """The handle of each front: every handle point goes to the front whose rectangle it lies
-    deepest in (signed in-plane distance, negative inside; at most ``max_gap`` outside) among
-    those it stands 0..``handle_max`` in front of; per front, the largest cluster of its points
-    (:func:`handle_clusters`) that spans less than ``max_span`` of the front either way. An edge
-    pull straddling the gap between two fronts thus goes,
-    point by point, mostly to the front it reaches into."""
-    out: list[np.ndarray | None] = [None] * len(fronts)
+                   max_gap: float = 0.03, max_span: float = 0.85, weights: np.ndarray | None = None
+                   ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    """The handle of each front as (points [M, 3], weights [M]): every handle point goes to the
+    front whose rectangle it lies deepest in (signed in-plane distance, negative inside; at most
+    ``max_gap`` outside) among those it stands 0..``handle_max`` in front of; per front, of the
+    clusters of its points (:func:`handle_clusters`) that span less than ``max_span`` of the
+    front either way, the one of largest total weight (``weights`` [N] >= 0, default 1 per
+    point). An edge pull straddling the gap between two fronts thus goes, point by point, mostly
+    to the front it reaches into; with weights = how often the masks hold a point, the fringe
+    that ragged masks smear onto a neighbour weighs less than the pull it belongs to."""
+    out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(fronts)
     if len(fronts) == 0 or len(points) == 0:
         return out
+    w_all = np.ones(len(points)) if weights is None else np.asarray(weights, float)
+    if w_all.shape != (len(points),) or not np.all(np.isfinite(w_all)) or (w_all < 0).any():
+        raise ValueError(f"assign_handles: weights must be [{len(points)}] finite and >= 0")
     best = np.full(len(points), np.inf)
     owner = np.full(len(points), -1)
     for k, f in enumerate(fronts):
@@ -150,17 +159,24 @@ def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfi
         owner[ok] = k
     for k, f in enumerate(fronts):
         u, v = np.asarray(f.u), f.v
+        pts, w = points[owner == k], w_all[owner == k]
         # a handle is shorter than its front: a cluster spanning it is a counter edge or a plinth
-        cl = [c for c in handle_clusters(points[owner == k], radius, min_points)
-              if np.ptp(c @ u) < max_span * f.size[0] and np.ptp(c @ v) < max_span * f.size[1]]
+        cl = [i for i in handle_clusters(pts, radius, min_points)
+              if np.ptp(pts[i] @ u) < max_span * f.size[0] and np.ptp(pts[i] @ v) < max_span * f.size[1]]
         if cl:
-            out[k] = max(cl, key=len)
+            i = max(cl, key=lambda i: (w[i].sum(), len(i)))
+            out[k] = (pts[i], w[i])
     return out
 
 
-def describe_handle(front: Front, pts: np.ndarray | None, source: str) -> Handle | None:
-    if pts is None:
+def describe_handle(front: Front, found: tuple[np.ndarray, np.ndarray] | None, source: str) -> Handle | None:
+    """The handle's place (median of its points in the front's unit square) and shape (5th-95th
+    percentile extents) from :func:`assign_handles`' (points, weights). The weights chose the
+    cluster; they do not move the median: a cluster that single linkage merged from two pulls
+    keeps the place its points give."""
+    if found is None:
         return None
+    pts = found[0]
     c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
     hw, hh = front.size[0] / 2, front.size[1] / 2
     rel = pts - c
@@ -436,9 +452,13 @@ def _sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: Ar
 
 
 def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,
-                handle_hits: np.ndarray | None = None, masks_of: Callable | None = None) -> tuple[list[Part], list[dict]]:
-    """(parts, per-segment decisions for the report). ``masks_of(segment)`` -> [(mask, w2c, K)]
-    gives the 2D masks a segment matched (refines its rectangle); None uses the mesh alone."""
+                handle_hits: np.ndarray | None = None, masks_of: Callable | None = None,
+                face_views: np.ndarray | None = None) -> tuple[list[Part], list[dict]]:
+    """(parts, per-segment decisions for the report). ``handle_hits`` [F]: in how many views a
+    "handle" mask covers each face (faces with >= 2 are handle evidence); ``face_views`` [F]: in
+    how many views each face is visible, needed by ``cfg.handle_evidence = view_rate`` (weighs
+    each face by hits / views). ``masks_of(segment)`` -> [(mask, w2c, K)] gives the 2D masks a
+    segment matched (refines its rectangle); None uses the mesh alone."""
     mesh_pts, pt_face = _sample_points(mesh, np.arange(len(mesh.faces)), per_m2=20000.0, seed=1, with_faces=True)
     pt_normal = np.asarray(mesh.face_normals)[pt_face]
     fc = np.asarray(mesh.triangles_center)
@@ -473,10 +493,18 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     # handles: clusters of handle-mask faces and of mesh protrusions, each given to one front
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
-    hit = fc[handle_hits >= 2] if handle_hits is not None else np.zeros((0, 3))
+    hit_faces = np.nonzero(handle_hits >= 2)[0] if handle_hits is not None else np.zeros(0, np.int64)
+    hit_w = None
+    if cfg.handle_evidence == "view_rate" and handle_hits is not None:
+        if face_views is None:
+            raise ValueError("infer_parts: articulate.handle_evidence = view_rate needs face_views (a decompose "
+                             "output that stores them: re-run decompose)")
+        if len(face_views) != len(handle_hits):
+            raise ValueError(f"infer_parts: face_views has {len(face_views)} entries, handle_hits {len(handle_hits)}")
+        hit_w = np.clip(handle_hits[hit_faces] / np.maximum(face_views[hit_faces], 1), 0.0, 1.0)
     by_geo = assign_handles(fronts, geo_pts, cfg, 0.015, 10)
     spacing = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
-    by_mask = assign_handles(fronts, hit, cfg, max(0.015, 1.5 * spacing), 3)
+    by_mask = assign_handles(fronts, fc[hit_faces], cfg, max(0.015, 1.5 * spacing), 3, weights=hit_w)
     handles = [describe_handle(f, m, "masks") if m is not None else describe_handle(f, g, "geometry")
                for f, g, m in zip(fronts, by_geo, by_mask)]
     seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]

@@ -94,7 +94,10 @@ class ArticulateConfig:
     Revolute limits default to ``revolute_limit_deg``; drawer travel is ``drawer_travel`` x the
     carcass depth the mesh shows behind the front (``default_depth`` when it shows none).
     Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
-    other share one boundary: the mean of the two estimates."""
+    other share one boundary: the mean of the two estimates. ``handle_evidence``: how a front
+    picks its handle among the clusters of handle-mask faces on it: ``count`` (the most faces)
+    or ``view_rate`` (the largest sum over its faces of the fraction of the views seeing a face
+    in which a mask covers it: the fringe ragged masks smear onto a neighbour weighs less)."""
 
     estimator: str = "geometric"
     use_labels: bool = True
@@ -109,6 +112,7 @@ class ArticulateConfig:
     default_depth: float = 0.5
     sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
     shared_edge_gap: float = 0.025
+    handle_evidence: str = "count"
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:
@@ -117,6 +121,8 @@ class ArticulateConfig:
             raise ConfigError(f"articulate.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if not 0 < self.handle_min < self.handle_max:
             raise ConfigError("articulate: need 0 < handle_min < handle_max")
+        if self.handle_evidence not in ("count", "view_rate"):
+            raise ConfigError(f"articulate.handle_evidence = {self.handle_evidence!r} must be count or view_rate")
         if self.shared_edge_gap < 0:
             raise ConfigError(f"articulate.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
         if self.revolute_limit_deg <= 0 or self.drawer_travel <= 0:

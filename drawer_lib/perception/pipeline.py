@@ -1,7 +1,8 @@
 """What the ``decompose``, ``articulate`` and ``evaluate`` stages do.
 
 decompose: capture + mesh -> ``segments.json``, ``face_labels.npz`` (per face of
-``perception_mesh.ply``: segment id or -1, and handle-mask hits), ``perception_mesh.ply``.
+``perception_mesh.ply``: segment id or -1, the number of views whose "handle" masks cover it and
+the number of train views that see it), ``perception_mesh.ply``.
 articulate: those + capture -> ``parts.json`` (DESIGN §5) + ``decisions.json`` (why each segment
 got its type). evaluate: ``parts.json`` vs ``gt/parts.json`` -> precision, recall, EA-score.
 """
@@ -57,15 +58,17 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, manifest: Manifest, mesh_p
 
         segs, handle_hits, info = decompose_geometric(cap, views, cfg.geometric, cfg)
     mesh.export(out / "perception_mesh.ply")
-    np.savez_compressed(out / "face_labels.npz", labels=face_labels(len(mesh.faces), segs), handle_hits=handle_hits)
+    np.savez_compressed(out / "face_labels.npz", labels=face_labels(len(mesh.faces), segs), handle_hits=handle_hits,
+                        face_views=views.face_frames())
     write_json(out / "segments.json", {"schema": SEGMENTS_SCHEMA, "source": source, "n_faces": int(len(mesh.faces)),
                                        "segments": [s.to_json() for s in segs]})
     return {"source": source, "n_segments": len(segs), "n_planar": sum(s.planar for s in segs),
             "mesh_faces": int(len(mesh.faces)), "views_s": round(t_views, 3), **info}
 
 
-def load_segments(d: Path) -> tuple[trimesh.Trimesh, list[Segment], np.ndarray]:
-    """(perception mesh, segments with their faces, [F] handle-mask hits) of a decompose output."""
+def load_segments(d: Path) -> tuple[trimesh.Trimesh, list[Segment], np.ndarray, np.ndarray | None]:
+    """(perception mesh, segments with their faces, [F] handle-mask hits, [F] views seeing each
+    face or None from an output written before that was stored) of a decompose output."""
     for name in ("segments.json", "face_labels.npz", "perception_mesh.ply"):
         if not (d / name).is_file():
             raise InputError(f"{d / name}: missing (run the decompose stage first)")
@@ -75,15 +78,17 @@ def load_segments(d: Path) -> tuple[trimesh.Trimesh, list[Segment], np.ndarray]:
     mesh = trimesh.load(d / "perception_mesh.ply", process=False)
     z = np.load(d / "face_labels.npz")
     labels, hits = z["labels"], z["handle_hits"]
-    if len(labels) != len(mesh.faces):
-        raise InputError(f"{d / 'face_labels.npz'}: {len(labels)} labels for {len(mesh.faces)} faces")
+    face_views = z["face_views"] if "face_views" in z.files else None
+    for name, a in (("labels", labels), ("handle_hits", hits), ("face_views", face_views)):
+        if a is not None and len(a) != len(mesh.faces):
+            raise InputError(f"{d / 'face_labels.npz'}: {len(a)} {name} for {len(mesh.faces)} faces")
     segs = []
     for s in js["segments"]:
         segs.append(Segment(int(s["id"]), np.nonzero(labels == int(s["id"]))[0], float(s["score"]),
                             int(s["support_frames"]), dict(s["labels"]), bool(s["planar"]), np.asarray(s["normal"]),
                             float(s["area_m2"]), np.asarray(s["centroid"]), s.get("source", "detections"),
                             matched=[(str(a), int(b)) for a, b in s.get("matched", [])]))
-    return mesh, segs, hits
+    return mesh, segs, hits, face_views
 
 
 def camera_centers(cap: Capture, frames: list[int]) -> np.ndarray:
@@ -113,10 +118,13 @@ def _mask_source(cap: Capture):
 
 def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, out: Path) -> dict:
     est = get_estimator(cfg.estimator)
-    mesh, segs, hits = load_segments(seg_dir)
+    mesh, segs, hits, face_views = load_segments(seg_dir)
+    if cfg.handle_evidence == "view_rate" and face_views is None:
+        raise InputError(f"{seg_dir / 'face_labels.npz'}: has no face_views, which articulate.handle_evidence = "
+                         "view_rate needs (written by an older decompose: re-run it)")
     if est is infer_parts:
         masks_of = _mask_source(cap) if cap.has("detections_path") else None
-        parts, report = infer_parts(mesh, segs, camera_centers(cap, list(cap.train)), cfg, hits, masks_of)
+        parts, report = infer_parts(mesh, segs, camera_centers(cap, list(cap.train)), cfg, hits, masks_of, face_views)
     else:
         parts, report = est(mesh, segs, camera_centers(cap, list(cap.train)), cfg, handle_hits=hits)
     pf = PartsFile(tuple(parts))

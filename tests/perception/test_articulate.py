@@ -7,8 +7,8 @@ import pytest
 import trimesh
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.perception.articulate import (assign_handles, decide, get_estimator, handle_clusters, infer_parts,
-                                              refine_with_masks, share_edges)
+from drawer_lib.perception.articulate import (assign_handles, decide, describe_handle, get_estimator, handle_clusters,
+                                              infer_parts, refine_with_masks, share_edges)
 from drawer_lib.perception.config import ArticulateConfig
 from drawer_lib.perception.decompose import Segment, face_geometry
 
@@ -122,7 +122,54 @@ def test_handles_between_two_fronts_go_to_the_one_they_reach_into():
     pts = np.concatenate([own_upper, edge_pull_lower])
     assert len(handle_clusters(pts, 0.015, 6)) == 2
     got = assign_handles([upper, lower], pts, ArticulateConfig(), 0.015, 6)
-    assert np.allclose(got[0].mean(0), own_upper.mean(0)) and np.allclose(got[1].mean(0), edge_pull_lower.mean(0))
+    assert np.allclose(got[0][0].mean(0), own_upper.mean(0)) and np.allclose(got[1][0].mean(0), edge_pull_lower.mean(0))
+
+
+def test_mask_fringe_on_a_neighbour_weighs_less_than_the_fronts_own_pull():
+    """Two doors side by side (3 mm gap at x = 0.5). The left door's own pull sits at its left
+    edge (masks hold it in 60 % of the views); the right door's pull, at its own left edge, is
+    smeared by ragged masks onto the left door's right edge: more faces there, each held in only
+    15 % of the views. By count the left door would take the fringe (hinge on the wrong side);
+    weighted by the rate the masks hold each face, it keeps its own pull."""
+    from drawer_lib.io.parts import Front
+
+    left = Front((0.2485, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.497, 0.7))
+    right = Front((0.7515, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.497, 0.7))
+    g = np.random.default_rng(1)
+
+    def strip(x0, x1, n):  # a vertical strip of face centroids on the front plane
+        return np.stack([g.uniform(x0, x1, n), np.full(n, Y - 0.005), g.uniform(0.55, 0.7, n)], -1)
+
+    own = strip(0.005, 0.03, 40)
+    fringe = strip(0.47, 0.498, 60)
+    other = strip(0.503, 0.53, 50)  # the right door's pull on its own side
+    pts = np.concatenate([own, fringe, other])
+    w = np.concatenate([np.full(40, 0.6), np.full(60, 0.15), np.full(50, 0.6)])
+    cfg = ArticulateConfig()
+    by_count = assign_handles([left, right], pts, cfg, 0.015, 3)
+    by_rate = assign_handles([left, right], pts, cfg, 0.015, 3, weights=w)
+    assert by_count[0][0].mean(0)[0] > 0.45  # the trap the weights avoid
+    assert by_rate[0][0].mean(0)[0] < 0.05 and by_rate[1][0].mean(0)[0] > 0.5
+    h = describe_handle(left, by_rate[0], "masks")
+    assert h.a_u < 0.1 and decide(h, {}, cfg).hinge == "right"
+    with pytest.raises(ValueError, match="weights"):
+        assign_handles([left, right], pts, cfg, 0.015, 3, weights=-w)
+    with pytest.raises(ConfigError, match="handle_evidence"):
+        ArticulateConfig(handle_evidence="votes")
+
+
+def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle():
+    mesh, outer = scene("right")
+    seg = segment(mesh, outer)
+    fc = np.asarray(mesh.triangles_center)
+    # "handle" masks cover the handle box's faces in 8 of 10 views
+    hits = np.where(fc[:, 1] < Y - 0.02, 8, 0)
+    views = np.full(len(fc), 10)
+    by_count, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(), hits)
+    by_rate, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="view_rate"), hits, face_views=views)
+    assert by_count[0].extra["hinge"] == by_rate[0].extra["hinge"] == "left"
+    with pytest.raises(ValueError, match="face_views"):
+        infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="view_rate"), hits)
 
 
 def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():

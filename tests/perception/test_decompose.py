@@ -41,8 +41,10 @@ def test_perfect_detections_on_the_gt_mesh_recover_every_part(exact_capture, tmp
         assert res["ea_score"] >= 0.98
     js = json.loads((tmp_path / "decompose" / "segments.json").read_text())
     assert js["schema"] == "drawer.segments/1" and all(s["matched"] for s in js["segments"])
-    mesh, segs, hits = load_segments(tmp_path / "decompose")
+    mesh, segs, hits, face_views = load_segments(tmp_path / "decompose")
     assert len(segs) == len(js["segments"]) and hits.shape == (len(mesh.faces),)
+    # a face is never covered by handle masks in more views than see it
+    assert face_views.shape == hits.shape and (hits <= face_views).all() and hits.sum() > 0
 
 
 @pytest.fixture(scope="module")
