@@ -95,9 +95,9 @@ class ArticulateConfig:
     carcass depth the mesh shows behind the front (``default_depth`` when it shows none).
     Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
     other share one boundary: the mean of the two estimates. ``handle_evidence``: how a front
-    picks its handle among the clusters of handle-mask faces on it: ``count`` (the most faces)
-    or ``view_rate`` (the largest sum over its faces of the fraction of the views seeing a face
-    in which a mask covers it: the fringe ragged masks smear onto a neighbour weighs less)."""
+    picks its handle among the clusters of handle-mask faces on it: ``view_rate`` (default: the
+    largest sum over its faces of the fraction of the views seeing a face in which a mask covers
+    it; the fringe ragged masks smear onto a neighbour weighs less) or ``count`` (the most faces)."""
 
     estimator: str = "geometric"
     use_labels: bool = True
@@ -112,7 +112,7 @@ class ArticulateConfig:
     default_depth: float = 0.5
     sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
     shared_edge_gap: float = 0.025
-    handle_evidence: str = "count"
+    handle_evidence: str = "view_rate"
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:

@@ -254,6 +254,13 @@ class _Builder:
         z = {"top": top_z, "bottom": r.z0 + max(0.045, min(r.h / 2 - 0.001, 0.06))}.get(where.split("-")[0], c[2])
         d = U if along == "h" else V
         length = min(length, (r.w if along == "h" else r.h) - 0.06)
+        # a handle stays on its front: one whose end would stand more than 1 cm beyond it (a long
+        # bar placed near an edge) moves inward until 2 cm of the front remain past its end
+        lo, hi = (r.x0, r.x1) if along == "h" else (r.z0, r.z1)
+        at = x if along == "h" else z
+        if at - length / 2 < lo - 0.01 or at + length / 2 > hi + 0.01:
+            at = float(np.clip(at, lo + length / 2 + 0.02, hi - length / 2 - 0.02))
+            x, z = (at, z) if along == "h" else (x, at)
         if style == "edge":
             # a pull profile on the edge nearest to where a hand would pull
             if along == "v":

@@ -165,7 +165,7 @@ def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle(
     # "handle" masks cover the handle box's faces in 8 of 10 views
     hits = np.where(fc[:, 1] < Y - 0.02, 8, 0)
     views = np.full(len(fc), 10)
-    by_count, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(), hits)
+    by_count, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="count"), hits)
     by_rate, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="view_rate"), hits, face_views=views)
     assert by_count[0].extra["hinge"] == by_rate[0].extra["hinge"] == "left"
     with pytest.raises(ValueError, match="face_views"):

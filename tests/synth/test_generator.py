@@ -114,6 +114,28 @@ def test_layout_fronts_are_sane(kitchen):
         hv = np.concatenate([p.mesh.verts for p in e.pieces if p.role == "handle"])
         proud = (hv - np.asarray(e.front.center)) @ OUT
         assert proud.max() > 0.008, e.name
+        _assert_handle_on_front(e, hv)
+
+
+def _assert_handle_on_front(e, hv: np.ndarray, tol: float = 0.02) -> None:
+    """No handle reaches more than ``tol`` (m) beyond its front's rectangle (a bar's end cap may
+    pass an edge by a little, an edge pull's plate sits in the gap; a bar standing on the next
+    front is a layout error)."""
+    f = e.front
+    rel = hv - np.asarray(f.center)
+    eu = np.abs(rel @ np.asarray(f.u)) - f.size[0] / 2
+    ev = np.abs(rel @ np.asarray(f.v)) - f.size[1] / 2
+    assert max(eu.max(), ev.max()) <= tol, f"{e.name}: handle reaches {max(eu.max(), ev.max()):.3f} m past its front"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_tall_unit_handles_stay_on_their_fronts(seed):
+    cfg = SynthConfig(seed=seed)
+    cfg = dataclasses.replace(cfg, layout=dataclasses.replace(cfg.layout, tall_units=2))
+    layout = sample_layout(cfg)
+    for e in layout.parts():
+        if e.front is not None:
+            _assert_handle_on_front(e, np.concatenate([p.mesh.verts for p in e.pieces if p.role == "handle"]))
 
 
 def test_required_types_and_kinds_present():
