@@ -1,6 +1,7 @@
 """Configs of the ``decompose`` and ``articulate`` stages (conf/decompose/, conf/articulate/).
 Lengths in metres, angles in degrees."""
 
+import math
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
@@ -34,7 +35,8 @@ class DecomposeConfig:
     fewer than ``min_rate`` of those frames are dropped (this removes one-off false masks and the
     borders between fronts that merged masks bridge now and then), and so are edges whose
     dihedral angle exceeds ``max_dihedral``. Louvain (networkx, seeded)
-    runs at every resolution in ``resolutions``; communities of at least ``min_faces`` faces are
+    runs at every resolution in ``resolutions`` (a run over ``louvain_timeout_s`` seconds, a
+    networkx round-off cycle, is retried with the next seed; <= 0: unbounded); communities of at least ``min_faces`` faces are
     candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
     least ``min_px_frac`` of the image area of it with the frame's masks, not counting the pixels
     within ``band_px`` of the silhouette's border; ``score`` = median best IoU, kept when
@@ -65,6 +67,7 @@ class DecomposeConfig:
     planar_deg: float = 30.0
     planar_frac: float = 0.6
     seed: int = 42
+    louvain_timeout_s: float = 60.0
     geometric: GeometricConfig = field(default_factory=GeometricConfig)
 
     def __post_init__(self):
@@ -72,6 +75,8 @@ class DecomposeConfig:
             raise ConfigError(f"decompose.source = {self.source!r} must be auto, detections or geometric")
         if not self.resolutions or any(r <= 0 for r in self.resolutions):
             raise ConfigError(f"decompose.resolutions = {self.resolutions} must be positive numbers")
+        if not math.isfinite(self.louvain_timeout_s):
+            raise ConfigError(f"decompose.louvain_timeout_s = {self.louvain_timeout_s} must be finite (<= 0: no bound)")
         if not 0 < self.min_score <= 1 or not 0 < self.dup_overlap <= 1:
             raise ConfigError("decompose: min_score and dup_overlap must be in (0, 1]")
         if self.band_px < 0:
@@ -95,9 +100,9 @@ class ArticulateConfig:
     carcass depth the mesh shows behind the front (``default_depth`` when it shows none).
     Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
     other share one boundary: the mean of the two estimates. ``handle_evidence``: how a front
-    picks its handle among the clusters of handle-mask faces on it: ``view_rate`` (default: the
-    largest sum over its faces of the fraction of the views seeing a face in which a mask covers
-    it; the fringe ragged masks smear onto a neighbour weighs less) or ``count`` (the most faces)."""
+    picks its handle among the clusters of handle-mask faces on it: ``count`` (default: the most
+    faces) or ``view_rate`` (the largest sum over its faces of the fraction of the views seeing a
+    face in which a mask covers it; the fringe ragged masks smear onto a neighbour weighs less)."""
 
     estimator: str = "geometric"
     use_labels: bool = True
@@ -112,7 +117,7 @@ class ArticulateConfig:
     default_depth: float = 0.5
     sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
     shared_edge_gap: float = 0.025
-    handle_evidence: str = "view_rate"
+    handle_evidence: str = "count"
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:

@@ -107,10 +107,53 @@ def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, ma
     return edges[keep], rate[keep]
 
 
+class _LouvainTimeout(Exception):
+    pass
+
+
+def louvain_bounded(G, resolution: float, seed: int, timeout_s: float, tries: int = 4) -> tuple[list[set] | None, int]:
+    """``networkx.community.louvain_communities`` with a wall-clock bound: in networkx <= 3.6.1
+    its local-moving loop can cycle forever on floating-point ties (networkx issue #8739, fixed
+    upstream after 3.6.1), depending on the seed. A run longer than ``timeout_s`` is interrupted
+    (SIGALRM: the networkx loop is pure Python) and retried with the next seed, up to ``tries``
+    seeds. Returns (communities or None when every try timed out, tries used). Off the main
+    thread, or with ``timeout_s`` <= 0, it runs unbounded."""
+    import signal
+    import threading
+
+    import networkx as nx
+
+    run = lambda sd: nx.community.louvain_communities(G, weight="weight", resolution=resolution, seed=sd)  # noqa: E731
+    if timeout_s <= 0 or threading.current_thread() is not threading.main_thread() or not hasattr(signal, "SIGALRM"):
+        return run(seed), 1
+
+    def _raise(signum, frame):
+        raise _LouvainTimeout
+
+    def attempt(sd: int):
+        try:
+            signal.setitimer(signal.ITIMER_REAL, timeout_s)
+            return run(sd)
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+
+    old = signal.signal(signal.SIGALRM, _raise)
+    try:
+        for k in range(tries):
+            try:  # an alarm anywhere in the attempt, even in its clean-up, counts as a timeout
+                return attempt(seed + k), k + 1
+            except _LouvainTimeout:
+                continue
+        return None, tries
+    finally:
+        signal.signal(signal.SIGALRM, old)
+
+
 def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, resolutions, min_faces: int,
-                       seed: int) -> list[np.ndarray]:
+                       seed: int, timeout_s: float = 60.0, report: dict | None = None) -> list[np.ndarray]:
     """Communities (face-id arrays, each its largest connected component) over all resolutions,
-    exact duplicates removed."""
+    exact duplicates removed. Each Louvain run is bounded (:func:`louvain_bounded`); ``report``
+    (if given) receives ``louvain_retries`` and the ``louvain_skipped`` resolutions."""
     import networkx as nx
 
     out, seen = [], set()
@@ -130,10 +173,18 @@ def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, res
         add(np.nonzero((lab == c) & (deg > 0))[0])
     G = nx.Graph()
     G.add_weighted_edges_from(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), weights.tolist()))
+    retries, skipped = 0, []
     for r in resolutions:
-        for com in nx.community.louvain_communities(G, weight="weight", resolution=float(r), seed=seed):
+        coms, used = louvain_bounded(G, float(r), seed, timeout_s)
+        retries += used - 1
+        if coms is None:
+            skipped.append(float(r))
+            continue
+        for com in coms:
             if len(com) >= min_faces:
                 add(largest_component(np.fromiter(com, np.int64), n_faces, edges))
+    if report is not None:
+        report.update(louvain_retries=retries, louvain_skipped=skipped)
     return out
 
 
@@ -296,7 +347,8 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
     visible = views.face_frames()
     ge, gw = cooccurrence_graph(views.n_faces, edges, dih, masks, visible, cfg.min_cooccur, cfg.min_rate,
                                 cfg.max_dihedral)
-    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed)
+    lv: dict = {}
+    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, cfg.louvain_timeout_s, lv)
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
     scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress)
     segs = select_segments(cands, scores, views.mesh, cfg)
@@ -305,5 +357,5 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
     if cfg.grow:
         grow_segments(segs, [scores[s.source_candidate][3] for s in segs], views, label_maps, edges, cfg)
     info = {"masks": len(masks), "graph_edges": int(len(ge)), "candidates": len(cands), "segments": len(segs),
-            "planar_segments": sum(s.planar for s in segs), "handle_faces": int((handle_hits > 0).sum())}
+            "planar_segments": sum(s.planar for s in segs), "handle_faces": int((handle_hits > 0).sum()), **lv}
     return segs, handle_hits, info
