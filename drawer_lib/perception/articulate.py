@@ -130,8 +130,8 @@ def handle_clusters(points: np.ndarray, radius: float = 0.015, min_points: int =
 
 def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
                    max_gap: float = 0.03, max_span: float = 0.85, weights: np.ndarray | None = None
-                   ) -> list[tuple[np.ndarray, np.ndarray] | None]:
-    """The handle of each front as (points [M, 3], weights [M]): every handle point goes to the
+                   ) -> list[np.ndarray | None]:
+    """The handle points [M, 3] of each front: every handle point goes to the
     front whose rectangle it lies deepest in (signed in-plane distance, negative inside; at most
     ``max_gap`` outside) among those it stands 0..``handle_max`` in front of; per front, of the
     clusters of its points (:func:`handle_clusters`) that span less than ``max_span`` of the
@@ -139,7 +139,7 @@ def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfi
     point). An edge pull straddling the gap between two fronts thus goes, point by point, mostly
     to the front it reaches into; with weights = how often the masks hold a point, the fringe
     that ragged masks smear onto a neighbour weighs less than the pull it belongs to."""
-    out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(fronts)
+    out: list[np.ndarray | None] = [None] * len(fronts)
     if len(fronts) == 0 or len(points) == 0:
         return out
     w_all = np.ones(len(points)) if weights is None else np.asarray(weights, float)
@@ -164,19 +164,15 @@ def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfi
         cl = [i for i in handle_clusters(pts, radius, min_points)
               if np.ptp(pts[i] @ u) < max_span * f.size[0] and np.ptp(pts[i] @ v) < max_span * f.size[1]]
         if cl:
-            i = max(cl, key=lambda i: (w[i].sum(), len(i)))
-            out[k] = (pts[i], w[i])
+            out[k] = pts[max(cl, key=lambda i: (w[i].sum(), len(i)))]
     return out
 
 
-def describe_handle(front: Front, found: tuple[np.ndarray, np.ndarray] | None, source: str) -> Handle | None:
-    """The handle's place (median of its points in the front's unit square) and shape (5th-95th
-    percentile extents) from :func:`assign_handles`' (points, weights). The weights chose the
-    cluster; they do not move the median: a cluster that single linkage merged from two pulls
-    keeps the place its points give."""
-    if found is None:
+def describe_handle(front: Front, pts: np.ndarray | None, source: str) -> Handle | None:
+    """The handle's place (median of its points [M, 3] in the front's unit square) and shape
+    (5th-95th percentile extents)."""
+    if pts is None:
         return None
-    pts = found[0]
     c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
     hw, hh = front.size[0] / 2, front.size[1] / 2
     rel = pts - c

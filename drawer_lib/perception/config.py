@@ -36,8 +36,8 @@ class DecomposeConfig:
     borders between fronts that merged masks bridge now and then), and so are edges whose
     dihedral angle exceeds ``max_dihedral``. Louvain (networkx, seeded)
     runs at every resolution in ``resolutions`` (a run over ``louvain_timeout_s`` seconds, a
-    networkx round-off cycle, is retried with the next seed; <= 0: unbounded); communities of at least ``min_faces`` faces are
-    candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
+    networkx round-off cycle, is retried with the next seed; <= 0: unbounded); communities of
+    at least ``min_faces`` faces are candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
     least ``min_px_frac`` of the image area of it with the frame's masks, not counting the pixels
     within ``band_px`` of the silhouette's border; ``score`` = median best IoU, kept when
     >= ``min_score`` over >= ``min_frames`` frames. Greedy by score: a candidate more than

@@ -122,7 +122,7 @@ def test_handles_between_two_fronts_go_to_the_one_they_reach_into():
     pts = np.concatenate([own_upper, edge_pull_lower])
     assert len(handle_clusters(pts, 0.015, 6)) == 2
     got = assign_handles([upper, lower], pts, ArticulateConfig(), 0.015, 6)
-    assert np.allclose(got[0][0].mean(0), own_upper.mean(0)) and np.allclose(got[1][0].mean(0), edge_pull_lower.mean(0))
+    assert np.allclose(got[0].mean(0), own_upper.mean(0)) and np.allclose(got[1].mean(0), edge_pull_lower.mean(0))
 
 
 def test_mask_fringe_on_a_neighbour_weighs_less_than_the_fronts_own_pull():
@@ -148,8 +148,8 @@ def test_mask_fringe_on_a_neighbour_weighs_less_than_the_fronts_own_pull():
     cfg = ArticulateConfig()
     by_count = assign_handles([left, right], pts, cfg, 0.015, 3)
     by_rate = assign_handles([left, right], pts, cfg, 0.015, 3, weights=w)
-    assert by_count[0][0].mean(0)[0] > 0.45  # the trap the weights avoid
-    assert by_rate[0][0].mean(0)[0] < 0.05 and by_rate[1][0].mean(0)[0] > 0.5
+    assert by_count[0].mean(0)[0] > 0.45  # the trap the weights avoid
+    assert by_rate[0].mean(0)[0] < 0.05 and by_rate[1].mean(0)[0] > 0.5
     h = describe_handle(left, by_rate[0], "masks")
     assert h.a_u < 0.1 and decide(h, {}, cfg).hinge == "right"
     with pytest.raises(ValueError, match="weights"):
