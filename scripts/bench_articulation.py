@@ -16,6 +16,7 @@ scene) and pooled over all parts; writes ``<out>/results.json`` and ``<out>/summ
 
     python scripts/bench_articulation.py [--n 20] [--modes noisy,generic,off] [--out /tmp/bench_articulation]
     python scripts/bench_articulation.py --reuse     # after a perception change: same captures and meshes
+    python scripts/bench_articulation.py --reuse --kitchens 1,10 --modes noisy   # a subset
     python scripts/bench_articulation.py --reuse --set articulate.handle_evidence=view_rate
                                      # a config variant: results_<overrides>.json / summary_<overrides>.md
 """
@@ -136,6 +137,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--start", type=int, default=0)
+    ap.add_argument("--kitchens", default="", help="comma-separated kitchen indices (instead of --start/--n)")
     ap.add_argument("--modes", default="noisy,generic,off")
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_articulation"))
     ap.add_argument("--reuse", action="store_true",
@@ -150,7 +152,8 @@ def main() -> None:
     tag = "".join("_" + "".join(c if c.isalnum() or c in ".=-" else "-" for c in o) for o in a.set)
     res_path = a.out / f"results{tag}.json"
     rows = json.loads(res_path.read_text()) if res_path.exists() else []
-    todo = [(k, mode) for mode in a.modes.split(",") for k in range(a.start, a.start + a.n)]
+    ks = [int(k) for k in a.kitchens.split(",")] if a.kitchens else list(range(a.start, a.start + a.n))
+    todo = [(k, mode) for mode in a.modes.split(",") for k in ks]
     if a.reuse:  # recompute these rows
         rows = [r for r in rows if (r["kitchen"], r["mode"]) not in set(todo)]
     done = {(r["kitchen"], r["mode"]) for r in rows}

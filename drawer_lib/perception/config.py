@@ -30,14 +30,20 @@ class DecomposeConfig:
     ``max_faces``: the mesh is decimated to this many faces first (DRAWER: 80k at full
     resolution), cut to what the train views see, then split until no edge exceeds ``max_edge``.
     ``erode_px``: masks are eroded before their faces are collected, unless that would remove
-    half of a mask (DRAWER: 4 at 1080p). Graph: mesh-adjacent faces are joined with weight = the rate at which masks hold
+    half of a mask (DRAWER: 4 at 1080p). ``absorb_handles``: a handle mask (and the gap around
+    it) joins the front mask around it first
+    (:func:`~drawer_lib.perception.decompose.absorb_handles`). Graph: mesh-adjacent faces are joined with weight = the rate at which masks hold
     both (over the frames that see both); edges held by fewer than ``min_cooccur`` masks or in
     fewer than ``min_rate`` of those frames are dropped (this removes one-off false masks and the
     borders between fronts that merged masks bridge now and then), and so are edges whose
-    dihedral angle exceeds ``max_dihedral``. Louvain (networkx, seeded)
+    dihedral angle exceeds ``max_dihedral``. ``separation``: the rate at which the two faces lie
+    in different masks of one frame is subtracted first (cuts the border of a thin front that
+    the neighbour's ragged masks overlap). Louvain (networkx, seeded)
     runs at every resolution in ``resolutions`` (a run over ``louvain_timeout_s`` seconds, a
     networkx round-off cycle, is retried with the next seed; <= 0: unbounded); communities of
-    at least ``min_faces`` faces are candidates. Back-projection: a candidate's silhouette is compared in every frame that sees at
+    at least ``min_faces`` faces are candidates, and so are the connected components of the graph
+    cut to the edges of weight >= each of ``component_rates`` (a large front that modularity
+    splits at every resolution). Back-projection: a candidate's silhouette is compared in every frame that sees at
     least ``min_px_frac`` of the image area of it with the frame's masks, not counting the pixels
     within ``band_px`` of the silhouette's border; ``score`` = median best IoU, kept when
     >= ``min_score`` over >= ``min_frames`` frames. Greedy by score: a candidate more than
@@ -53,10 +59,13 @@ class DecomposeConfig:
     max_faces: int = 40000
     max_edge: float = 0.06
     erode_px: int = 1
+    absorb_handles: bool = True
     min_cooccur: int = 3
     min_rate: float = 0.3
     max_dihedral: float = 50.0
+    separation: bool = True
     resolutions: list[float] = field(default_factory=lambda: [0.1, 0.5, 1.0, 2.0, 5.0, 10.0])
+    component_rates: list[float] = field(default_factory=lambda: [0.5, 0.6, 0.7, 0.8])
     min_faces: int = 15
     min_px_frac: float = 0.0015
     band_px: int = 2
@@ -75,6 +84,8 @@ class DecomposeConfig:
             raise ConfigError(f"decompose.source = {self.source!r} must be auto, detections or geometric")
         if not self.resolutions or any(r <= 0 for r in self.resolutions):
             raise ConfigError(f"decompose.resolutions = {self.resolutions} must be positive numbers")
+        if any(not 0 < r <= 1 for r in self.component_rates):
+            raise ConfigError(f"decompose.component_rates = {self.component_rates} must lie in (0, 1]")
         if not math.isfinite(self.louvain_timeout_s):
             raise ConfigError(f"decompose.louvain_timeout_s = {self.louvain_timeout_s} must be finite (<= 0: no bound)")
         if not 0 < self.min_score <= 1 or not 0 < self.dup_overlap <= 1:
@@ -101,8 +112,10 @@ class ArticulateConfig:
     Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
     other share one boundary: the mean of the two estimates. ``handle_evidence``: how a front
     picks its handle among the clusters of handle-mask faces on it: ``count`` (default: the most
-    faces) or ``view_rate`` (the largest sum over its faces of the fraction of the views seeing a
-    face in which a mask covers it; the fringe ragged masks smear onto a neighbour weighs less)."""
+    faces), ``hits`` (the largest sum over its faces of the number of views whose masks cover a
+    face) or ``view_rate`` (the largest sum over its faces of the fraction of the views seeing a
+    face in which a mask covers it); with either of the last two the fringe that ragged masks
+    smear onto a neighbour weighs less than the pull."""
 
     estimator: str = "geometric"
     use_labels: bool = True
@@ -126,8 +139,8 @@ class ArticulateConfig:
             raise ConfigError(f"articulate.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if not 0 < self.handle_min < self.handle_max:
             raise ConfigError("articulate: need 0 < handle_min < handle_max")
-        if self.handle_evidence not in ("count", "view_rate"):
-            raise ConfigError(f"articulate.handle_evidence = {self.handle_evidence!r} must be count or view_rate")
+        if self.handle_evidence not in ("count", "hits", "view_rate"):
+            raise ConfigError(f"articulate.handle_evidence = {self.handle_evidence!r} must be count, hits or view_rate")
         if self.shared_edge_gap < 0:
             raise ConfigError(f"articulate.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
         if self.revolute_limit_deg <= 0 or self.drawer_travel <= 0:

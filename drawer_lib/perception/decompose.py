@@ -66,24 +66,67 @@ def read_detections(cap: Capture, views: MeshViews) -> list[tuple[np.ndarray, li
     return [cap.detections(i) for i in views.frames]
 
 
-def lift_masks(detections: list[tuple[np.ndarray, list[dict]]], views: MeshViews, erode_px: int
-               ) -> tuple[list[MaskRecord], np.ndarray]:
-    """The detections of every view as face sets; also [F] per-face count of "handle" mask hits."""
+def absorb_handles(lab: np.ndarray, dets: list[dict], ring_px: int = 2, min_contact: float = 0.3) -> np.ndarray:
+    """The label map ``lab`` [H, W] with every handle mask given to the front it sits on.
+
+    A detector that segments handles separately leaves a hole where the handle is in the mask of
+    its drawer or door; on a drawer a dozen pixels tall, a bar handle cuts that mask into thin
+    strips whose faces the co-occurrence graph then barely holds together. The front that owns a
+    handle is the non-handle mask holding most of the ring of ``ring_px`` pixels around it, if
+    that is at least ``min_contact`` of the ring; the handle's pixels and the unlabelled pixels of
+    its ring (the gap a ragged mask leaves) take that front's id. Returns a new map; ``lab`` is
+    not modified; handles without such a front keep their own id."""
+    from scipy import ndimage
+
+    handles = [int(d["id"]) for d in dets if str(d.get("label", "")).strip().lower() in HANDLE_LABELS]
+    if not handles:
+        return lab
+    is_front = np.zeros(int(lab.max()) + 1, bool)
+    for d in dets:
+        if int(d["id"]) not in handles and int(d["id"]) <= int(lab.max()):
+            is_front[int(d["id"])] = True
+    out = lab.copy()
+    for h in handles:
+        m = lab == h
+        if not m.any():
+            continue
+        ys, xs = np.nonzero(m)
+        y0, y1 = max(ys.min() - ring_px, 0), min(ys.max() + ring_px + 1, lab.shape[0])
+        x0, x1 = max(xs.min() - ring_px, 0), min(xs.max() + ring_px + 1, lab.shape[1])
+        mc, lc = m[y0:y1, x0:x1], lab[y0:y1, x0:x1]
+        ring = ndimage.binary_dilation(mc, iterations=ring_px) & ~mc
+        ids = lc[ring]
+        cnt = np.bincount(ids, minlength=len(is_front))[:len(is_front)] * is_front
+        if not ring.any() or cnt.max() < min_contact * ring.sum():
+            continue
+        owner = int(cnt.argmax())
+        oc = out[y0:y1, x0:x1]
+        oc[mc | (ring & (lc == 0))] = owner
+    return out
+
+
+def lift_masks(detections: list[tuple[np.ndarray, list[dict]]], views: MeshViews, erode_px: int,
+               front_maps: list[np.ndarray] | None = None) -> tuple[list[MaskRecord], np.ndarray]:
+    """The detections of every view as face sets; also [F] per-face count of "handle" mask hits.
+    ``front_maps``: label maps to take the non-handle masks from (default: the detections' own;
+    :func:`absorb_handles` gives maps whose fronts include their handles)."""
     from scipy import ndimage
 
     recs: list[MaskRecord] = []
     handle_hits = np.zeros(views.n_faces, np.int64)
     for t, (lab, dets) in enumerate(detections):
+        flab = front_maps[t] if front_maps is not None else lab
         for d in dets:
-            m = lab == int(d["id"])
+            label = str(d.get("label", "")).strip().lower()
+            is_handle = label in HANDLE_LABELS
+            m = (lab if is_handle else flab) == int(d["id"])
             if erode_px > 0:  # not when that would take most of a small mask away
                 e = ndimage.binary_erosion(m, iterations=erode_px)
                 m = e if e.sum() >= 0.5 * m.sum() else m
             f = views.faces_under(t, m)
             if len(f) == 0:
                 continue
-            label = str(d.get("label", "")).strip().lower()
-            if label in HANDLE_LABELS:
+            if is_handle:
                 handle_hits[f] += 1
                 continue
             recs.append(MaskRecord(t, int(d["id"]), label, float(d.get("score", 1.0)), f))
@@ -91,18 +134,35 @@ def lift_masks(detections: list[tuple[np.ndarray, list[dict]]], views: MeshViews
 
 
 def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, masks: list[MaskRecord],
-                       visible: np.ndarray, min_cooccur: int, min_rate: float, max_dihedral: float
-                       ) -> tuple[np.ndarray, np.ndarray]:
+                       visible: np.ndarray, min_cooccur: int, min_rate: float, max_dihedral: float,
+                       separation: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(edges [E', 2], weights [E']): adjacent face pairs held together by >= ``min_cooccur``
     masks and in >= ``min_rate`` of the frames that see both (``visible`` [F]: frames seeing each
-    face), with a dihedral angle <= ``max_dihedral`` deg. Weight = that rate."""
+    face), with a dihedral angle <= ``max_dihedral`` deg. Weight = that rate.
+
+    ``separation``: the rate at which the two faces lie in *different* masks of one frame is
+    subtracted from the rate before the threshold. Along the border of a thin front (a drawer
+    a dozen pixels tall) the neighbour's ragged masks hold both sides now and then, often enough
+    to pass ``min_rate``, while the front's own masks keep the sides apart in most frames; the
+    difference cuts that border and leaves the inside of a front (separated only by a false or
+    merged mask) as it was. Each frame's masks are disjoint (one label map), so a face is in at
+    most one mask per frame."""
     w = np.zeros(len(edges), np.int64)
-    inm = np.zeros(n_faces, bool)
+    sep = np.zeros(len(edges), np.int64)
+    by_view: dict[int, list[MaskRecord]] = {}
     for r in masks:
-        inm[r.faces] = True
-        w += inm[edges[:, 0]] & inm[edges[:, 1]]
-        inm[r.faces] = False
-    rate = w / np.maximum(np.minimum(visible[edges[:, 0]], visible[edges[:, 1]]), 1)
+        by_view.setdefault(r.view, []).append(r)
+    owner = np.full(n_faces, -1, np.int64)
+    for recs in by_view.values():
+        for k, r in enumerate(recs):
+            owner[r.faces] = k
+        a, b = owner[edges[:, 0]], owner[edges[:, 1]]
+        w += (a >= 0) & (a == b)
+        sep += (a >= 0) & (b >= 0) & (a != b)
+        for r in recs:
+            owner[r.faces] = -1
+    denom = np.maximum(np.minimum(visible[edges[:, 0]], visible[edges[:, 1]]), 1)
+    rate = (w - sep * separation) / denom
     keep = (w >= min_cooccur) & (rate >= min_rate) & (dihedral <= max_dihedral)
     return edges[keep], rate[keep]
 
@@ -150,10 +210,17 @@ def louvain_bounded(G, resolution: float, seed: int, timeout_s: float, tries: in
 
 
 def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, resolutions, min_faces: int,
-                       seed: int, timeout_s: float = 60.0, report: dict | None = None) -> list[np.ndarray]:
+                       seed: int, timeout_s: float = 60.0, report: dict | None = None,
+                       component_rates=()) -> list[np.ndarray]:
     """Communities (face-id arrays, each its largest connected component) over all resolutions,
     exact duplicates removed. Each Louvain run is bounded (:func:`louvain_bounded`); ``report``
-    (if given) receives ``louvain_retries`` and the ``louvain_skipped`` resolutions."""
+    (if given) receives ``louvain_retries`` and the ``louvain_skipped`` resolutions.
+
+    ``component_rates``: also the connected components of the graph cut to the edges of weight
+    >= each rate. On a mesh graph modularity splits a large uniform front (a tall door of 1.3k
+    faces) at every resolution that keeps it apart from its neighbours, since a cut across it
+    is cheap against the product of its halves' degrees; a weight threshold keeps it whole
+    when the masks hold its inside together more often than its border."""
     import networkx as nx
 
     out, seen = [], set()
@@ -171,6 +238,14 @@ def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, res
     deg = np.bincount(edges.ravel(), minlength=n_faces) if len(edges) else np.zeros(n_faces, np.int64)
     for c in np.unique(lab[deg > 0]):
         add(np.nonzero((lab == c) & (deg > 0))[0])
+    for rate in component_rates:
+        keep = weights >= rate
+        ek = edges[keep]
+        lab = connected_components(n_faces, ek)
+        dk = np.bincount(ek.ravel(), minlength=n_faces) if len(ek) else np.zeros(n_faces, np.int64)
+        ids, cnt = np.unique(lab[dk > 0], return_counts=True)
+        for c in ids[cnt >= min_faces]:
+            add(np.nonzero((lab == c) & (dk > 0))[0])
     G = nx.Graph()
     G.add_weighted_edges_from(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), weights.tolist()))
     retries, skipped = 0, []
@@ -341,14 +416,15 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
                               progress=lambda it, **kw: it) -> tuple[list[Segment], np.ndarray, dict]:
     """(segments, [F] handle-mask hits per face, counts)."""
     detections = read_detections(cap, views)
-    label_maps = [lab for lab, _ in detections]
-    masks, handle_hits = lift_masks(detections, views, cfg.erode_px)
+    label_maps = [absorb_handles(lab, dets) if cfg.absorb_handles else lab for lab, dets in detections]
+    masks, handle_hits = lift_masks(detections, views, cfg.erode_px, label_maps)
     edges, dih = adjacency_edges(views.mesh)
     visible = views.face_frames()
     ge, gw = cooccurrence_graph(views.n_faces, edges, dih, masks, visible, cfg.min_cooccur, cfg.min_rate,
-                                cfg.max_dihedral)
+                                cfg.max_dihedral, cfg.separation)
     lv: dict = {}
-    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, cfg.louvain_timeout_s, lv)
+    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, cfg.louvain_timeout_s, lv,
+                               cfg.component_rates)
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
     scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress)
     segs = select_segments(cands, scores, views.mesh, cfg)

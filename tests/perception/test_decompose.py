@@ -13,7 +13,8 @@ from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import articulation_metrics
 from drawer_lib.perception.config import ArticulateConfig, DecomposeConfig
-from drawer_lib.perception.decompose import MaskRecord, cooccurrence_graph, face_geometry, tolerant_ious
+from drawer_lib.perception.decompose import (MaskRecord, absorb_handles, cooccurrence_graph, face_geometry,
+                                             louvain_candidates, tolerant_ious)
 from drawer_lib.runner import StageRun
 from drawer_lib.perception.pipeline import load_segments, run_articulate, run_decompose, eval_views
 
@@ -97,6 +98,42 @@ def test_cooccurrence_graph_drops_one_off_masks_and_creases():
     assert len(e) == 0
 
 
+def test_separation_cuts_the_border_a_neighbours_ragged_mask_bleeds_over():
+    # a chain of faces: front A = 0..3, front B = 4..7; B's mask bleeds onto face 3 in 3 of 6
+    # frames, as a dilated mask of the door below does onto a thin drawer's lower row
+    edges = np.array([[i, i + 1] for i in range(7)])
+    dih = np.zeros(7)
+    vis = np.full(8, 6)
+    masks = []
+    for t in range(6):
+        bleed = t < 3
+        masks.append(MaskRecord(t, 1, "drawer", 1.0, np.arange(0, 3 if bleed else 4)))
+        masks.append(MaskRecord(t, 2, "door", 1.0, np.arange(3 if bleed else 4, 8)))
+    e, w = cooccurrence_graph(8, edges, dih, masks, vis, 3, 0.3, 50.0, separation=False)
+    assert [3, 4] in e.tolist()  # 3 of 6 frames hold both: the border survives the rate threshold
+    e, w = cooccurrence_graph(8, edges, dih, masks, vis, 3, 0.3, 50.0, separation=True)
+    assert [3, 4] not in e.tolist() and [2, 3] not in e.tolist()  # 3 together - 3 apart (both edges)
+    assert e.tolist() == [[0, 1], [1, 2], [4, 5], [5, 6], [6, 7]]
+    assert np.allclose(w, 1.0)  # never apart inside a front: weights as without separation
+
+
+def test_a_handle_mask_and_its_gap_join_the_front_around_it():
+    lab = np.zeros((12, 20), np.uint16)
+    lab[1:7, 1:19] = 1  # a thin drawer ...
+    lab[3:5, 5:15] = 0  # ... with a hole: its handle (id 2) and a one-pixel gap around it
+    lab[4, 6:14] = 2
+    lab[7:12, 1:19] = 3  # the door below
+    lab[10, 2:4] = 4  # a second handle, on the door
+    lab[0, 0] = 5  # a stray handle pixel on nothing: stays a handle
+    dets = [{"id": 1, "label": "drawer"}, {"id": 2, "label": "handle"}, {"id": 3, "label": "door"},
+            {"id": 4, "label": "Handle"}, {"id": 5, "label": "handle"}]
+    out = absorb_handles(lab, dets)
+    assert (out[1:7, 1:19] == 1).all()  # no hole left, the gap is the drawer's
+    assert (out[7:12, 1:19] == 3).all()  # the door's handle is the door's; the drawer did not grow
+    assert out[0, 0] == 5 and (lab[4, 6:14] == 2).all()  # the input is untouched
+    assert absorb_handles(lab, [d for d in dets if d["label"].lower() != "handle"]) is lab  # no handles: as is
+
+
 def test_face_geometry_of_antiparallel_faces_is_not_planar():
     m = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0.0]]), np.array([[0, 1, 2], [0, 2, 1]]),
                         process=False)
@@ -114,6 +151,36 @@ def test_config_errors_name_the_key():
         DecomposeConfig(resolutions=[0.0])
     with pytest.raises(ConfigError, match="decompose.band_px"):
         DecomposeConfig(band_px=-1)
+    with pytest.raises(ConfigError, match="decompose.component_rates"):
+        DecomposeConfig(component_rates=[0.5, 1.5])
+
+
+def _grid_edges(w: int, h: int, off: int) -> list[tuple[int, int]]:
+    e = []
+    for y in range(h):
+        for x in range(w):
+            i = off + y * w + x
+            if x + 1 < w:
+                e.append((i, i + 1))
+            if y + 1 < h:
+                e.append((i, i + w))
+    return e
+
+
+def test_a_tall_front_that_modularity_splits_is_kept_whole_by_a_weight_threshold():
+    # a tall door (6 x 80 faces) on a drawer (6 x 20), masks holding each inside at 0.9 and
+    # their border at 0.4: Louvain cuts the door into pieces at every resolution
+    door, drawer = _grid_edges(6, 80, 0), _grid_edges(6, 20, 480)
+    edges = np.array(door + drawer + [(79 * 6 + x, 480 + x) for x in range(6)])
+    w = np.array([0.9] * (len(door) + len(drawer)) + [0.4] * 6)
+    res = [0.1, 0.5, 1.0, 2.0, 5.0, 10.0]
+
+    def has_door(cands):
+        return any(len(c) == 480 and c.max() < 480 for c in cands)
+
+    assert not has_door(louvain_candidates(600, edges, w, res, 15, 42))
+    cands = louvain_candidates(600, edges, w, res, 15, 42, component_rates=[0.5])
+    assert has_door(cands) and any(len(c) == 120 and c.min() == 480 for c in cands)
 
 
 def _tolerant_iou_reference(sil, mask, band):
