@@ -128,18 +128,17 @@ def handle_clusters(points: np.ndarray, radius: float = 0.015, min_points: int =
     return [np.nonzero(lab == k)[0] for k in np.unique(lab) if (lab == k).sum() >= min_points]
 
 
-def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
-                   max_gap: float = 0.03, max_span: float = 0.85, weights: np.ndarray | None = None
-                   ) -> list[np.ndarray | None]:
-    """The handle points [M, 3] of each front: every handle point goes to the
-    front whose rectangle it lies deepest in (signed in-plane distance, negative inside; at most
-    ``max_gap`` outside) among those it stands 0..``handle_max`` in front of; per front, of the
-    clusters of its points (:func:`handle_clusters`) that span less than ``max_span`` of the
-    front either way, the one of largest total weight (``weights`` [N] >= 0, default 1 per
-    point). An edge pull straddling the gap between two fronts thus goes, point by point, mostly
-    to the front it reaches into; with weights = how often the masks hold a point, the fringe
-    that ragged masks smear onto a neighbour weighs less than the pull it belongs to."""
-    out: list[np.ndarray | None] = [None] * len(fronts)
+def handle_candidates(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float,
+                      min_points: int, max_gap: float = 0.03, max_span: float = 0.85,
+                      weights: np.ndarray | None = None) -> list[list[tuple[np.ndarray, float]]]:
+    """Per front, its handle candidates [(points [M, 3], total weight)], heaviest first: every
+    handle point goes to the front whose rectangle it lies deepest in (signed in-plane distance,
+    negative inside; at most ``max_gap`` outside) among those it stands 0..``handle_max`` in
+    front of; the candidates are the clusters of a front's points (:func:`handle_clusters`) that
+    span less than ``max_span`` of the front either way, weighed by ``weights`` [N] >= 0
+    (default 1 per point). An edge pull straddling the gap between two fronts thus goes, point
+    by point, mostly to the front it reaches into."""
+    out: list[list[tuple[np.ndarray, float]]] = [[] for _ in fronts]
     if len(fronts) == 0 or len(points) == 0:
         return out
     w_all = np.ones(len(points)) if weights is None else np.asarray(weights, float)
@@ -163,9 +162,86 @@ def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfi
         # a handle is shorter than its front: a cluster spanning it is a counter edge or a plinth
         cl = [i for i in handle_clusters(pts, radius, min_points)
               if np.ptp(pts[i] @ u) < max_span * f.size[0] and np.ptp(pts[i] @ v) < max_span * f.size[1]]
-        if cl:
-            out[k] = pts[max(cl, key=lambda i: (w[i].sum(), len(i)))]
+        cl.sort(key=lambda i: (-float(w[i].sum()), -len(i)))
+        out[k] = [(pts[i], float(w[i].sum())) for i in cl]
     return out
+
+
+def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
+                   max_gap: float = 0.03, max_span: float = 0.85, weights: np.ndarray | None = None
+                   ) -> list[np.ndarray | None]:
+    """The handle points [M, 3] of each front: its heaviest candidate (:func:`handle_candidates`);
+    with weights = how often the masks hold a point, the fringe that ragged masks smear onto a
+    neighbour weighs less than the pull it belongs to."""
+    cands = handle_candidates(fronts, points, cfg, radius, min_points, max_gap, max_span, weights)
+    return [c[0][0] if c else None for c in cands]
+
+
+def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray, float]]], edge_frac: float,
+                          max_gap: float = 0.03, plane_tol: float = 0.02, min_overlap: float = 0.5
+                          ) -> tuple[list[np.ndarray | None], list[tuple[int, int]]]:
+    """The handle of each front (its heaviest candidate) after one pass over stacked pairs.
+
+    An edge pull in the gap between a front and the one below it (coplanar, edges within
+    ``max_gap`` m, overlapping over ``min_overlap`` of the narrower width) is seen by both:
+    masks ragged by a pixel or two at ~1.3 cm per pixel cover both sides, so the upper front
+    may take the lower one's pull as "a handle near my bottom edge" (a flap) while the lower
+    takes it as its top-edge pull. When the upper front's choice lies in its bottom ``edge_frac``
+    and the lower front's in its top ``edge_frac``, both wider than tall and overlapping in width,
+    they are one pull, and it goes to the lower front: a pull in such a gap is a lip pull on the top edge of the front
+    below (the point weights cannot tell: on kitchen_tiny's drawer stack the upper front holds
+    75 of the pull's mask faces, the lower 30). The upper front takes its next candidate if it
+    has one; repeated until nothing changes (in a stack of three, the middle front's change can
+    make the top one's choice a shared pull). Returns (handle points per front or None,
+    [(front that gave up a candidate, front below)])."""
+    choice = [0 if c else -1 for c in cands]
+    changed: list[tuple[int, int]] = []
+    cos_t = np.cos(np.deg2rad(10.0))
+
+    def band(k: int) -> tuple[float, float, float, bool]:
+        """(u range in the front's frame, median height as a fraction of the front (0 = bottom),
+        wider than tall)."""
+        f = fronts[k]
+        rel = cands[k][choice[k]][0] - np.asarray(f.center)
+        pu, pv = rel @ np.asarray(f.u), rel @ f.v
+        wide = bool(np.ptp(pu) > np.ptp(pv))
+        return float(pu.min()), float(pu.max()), float(np.median(pv)) / max(f.size[1], 1e-9) + 0.5, wide
+
+    # stacked pairs (a above b), fixed by the geometry
+    pairs = []
+    for a, fa in enumerate(fronts):
+        for b, fb in enumerate(fronts):
+            if a == b or not cands[a] or not cands[b]:
+                continue
+            na, nb = np.asarray(fa.normal), np.asarray(fb.normal)
+            if na @ nb < cos_t or np.asarray(fa.u) @ np.asarray(fb.u) < cos_t:
+                continue
+            d = np.asarray(fb.center) - np.asarray(fa.center)  # b's centre in a's frame
+            if abs(d @ na) > plane_tol:
+                continue
+            du, dv = d @ np.asarray(fa.u), d @ fa.v
+            if dv >= 0 or abs((dv + fb.size[1] / 2) - (-fa.size[1] / 2)) > max_gap:  # b right below a
+                continue
+            over = min(fa.size[0] / 2, du + fb.size[0] / 2) - max(-fa.size[0] / 2, du - fb.size[0] / 2)
+            if over >= min_overlap * min(fa.size[0], fb.size[0]):
+                pairs.append((a, b, float(du)))
+    # until nothing changes: an upper front only ever moves on to its next candidate, so this
+    # ends; a stack of three resolves from the bottom pair up
+    moved = True
+    while moved:
+        moved = False
+        for a, b, du in pairs:
+            ua0, ua1, va, wide_a = band(a)
+            ub0, ub1, vb, wide_b = band(b)
+            if va > edge_frac or vb < 1 - edge_frac or min(ua1, ub1 + du) < max(ua0, ub0 + du):
+                continue
+            if not (wide_a and wide_b):  # two vertical bars by the gap (a tall unit's doors): two handles
+                continue
+            if choice[a] + 1 < len(cands[a]):  # the upper front gives it up for its next candidate
+                choice[a] += 1
+                changed.append((a, b))
+                moved = True
+    return [cands[k][choice[k]][0] if choice[k] >= 0 else None for k in range(len(fronts))], changed
 
 
 def describe_handle(front: Front, pts: np.ndarray | None, source: str) -> Handle | None:
@@ -498,9 +574,15 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         if len(face_views) != len(handle_hits):
             raise ValueError(f"infer_parts: face_views has {len(face_views)} entries, handle_hits {len(handle_hits)}")
         hit_w = np.clip(handle_hits[hit_faces] / np.maximum(face_views[hit_faces], 1), 0.0, 1.0)
+    elif cfg.handle_evidence == "hits" and handle_hits is not None:
+        hit_w = handle_hits[hit_faces].astype(float)
     by_geo = assign_handles(fronts, geo_pts, cfg, 0.015, 10)
     spacing = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
-    by_mask = assign_handles(fronts, fc[hit_faces], cfg, max(0.015, 1.5 * spacing), 3, weights=hit_w)
+    mask_cands = handle_candidates(fronts, fc[hit_faces], cfg, max(0.015, 1.5 * spacing), 3, weights=hit_w)
+    if cfg.stacked_pulls:
+        by_mask, gave_up = resolve_stacked_pulls(fronts, mask_cands, cfg.edge_frac, max(cfg.shared_edge_gap, 0.03))
+    else:
+        by_mask, gave_up = [c[0][0] if c else None for c in mask_cands], []
     handles = [describe_handle(f, m, "masks") if m is not None else describe_handle(f, g, "geometry")
                for f, g, m in zip(fronts, by_geo, by_mask)]
     seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
@@ -511,7 +593,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
             dec = decide(h, s.labels, cfg)
-        row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": dec.reason,
+        reason = dec.reason + "".join(f"; the pull it shared with segment {fits[hi][0].id} went there"
+                                      for lo, hi in gave_up if lo == k)
+        row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason,
                "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size], **info}
         report.append(row)
         if dec.family == "fixed":

@@ -111,11 +111,14 @@ class ArticulateConfig:
     carcass depth the mesh shows behind the front (``default_depth`` when it shows none).
     Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
     other share one boundary: the mean of the two estimates. ``handle_evidence``: how a front
-    picks its handle among the clusters of handle-mask faces on it: ``count`` (default: the most
-    faces), ``hits`` (the largest sum over its faces of the number of views whose masks cover a
-    face) or ``view_rate`` (the largest sum over its faces of the fraction of the views seeing a
+    picks its handle among the clusters of handle-mask faces on it: ``count`` (the most faces),
+    ``hits`` (the largest sum over its faces of the number of views whose masks cover a face) or
+    ``view_rate`` (default: the largest sum over its faces of the fraction of the views seeing a
     face in which a mask covers it); with either of the last two the fringe that ragged masks
-    smear onto a neighbour weighs less than the pull."""
+    smear onto a neighbour weighs less than the pull. ``stacked_pulls``: a pull in the gap between
+    a front and the one below it, which both take for their own, goes to the one holding more of
+    its weight; the other takes its next candidate
+    (:func:`~drawer_lib.perception.articulate.resolve_stacked_pulls`)."""
 
     estimator: str = "geometric"
     use_labels: bool = True
@@ -130,7 +133,8 @@ class ArticulateConfig:
     default_depth: float = 0.5
     sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
     shared_edge_gap: float = 0.025
-    handle_evidence: str = "count"
+    handle_evidence: str = "view_rate"
+    stacked_pulls: bool = True
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:

@@ -7,8 +7,9 @@ import pytest
 import trimesh
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.perception.articulate import (assign_handles, decide, describe_handle, get_estimator, handle_clusters,
-                                              infer_parts, refine_with_masks, share_edges)
+from drawer_lib.perception.articulate import (assign_handles, decide, describe_handle, get_estimator,
+                                              handle_candidates, handle_clusters, infer_parts, refine_with_masks,
+                                              resolve_stacked_pulls, share_edges)
 from drawer_lib.perception.config import ArticulateConfig
 from drawer_lib.perception.decompose import Segment, face_geometry
 
@@ -156,6 +157,57 @@ def test_mask_fringe_on_a_neighbour_weighs_less_than_the_fronts_own_pull():
         assign_handles([left, right], pts, cfg, 0.015, 3, weights=-w)
     with pytest.raises(ConfigError, match="handle_evidence"):
         ArticulateConfig(handle_evidence="votes")
+
+
+def test_a_pull_between_stacked_fronts_goes_to_the_lower_one():
+    # two stacked drawers (z 0.25-0.50 and 0.503-0.70), each with a lip pull on its top edge; the
+    # lower one's pull, smeared by ragged masks, reaches over the gap onto the upper front, where
+    # it outweighs the upper front's own pull
+    from drawer_lib.io.parts import Front
+
+    upper = Front((0.25, Y, 0.6015), (0, -1, 0), (1, 0, 0), (0.5, 0.197))
+    lower = Front((0.25, Y, 0.375), (0, -1, 0), (1, 0, 0), (0.5, 0.25))
+    g = np.random.default_rng(0)
+
+    def bar(z0, z1, n):  # a horizontal bar of face centroids 3 cm in front of the plane
+        return np.stack([g.uniform(0.15, 0.35, n), np.full(n, Y - 0.03), g.uniform(z0, z1, n)], -1)
+
+    own_upper = bar(0.685, 0.698, 30)
+    smear = bar(0.505, 0.53, 75)  # on the upper front, above the gap
+    own_lower = bar(0.47, 0.497, 30)  # the lower front's pull below the gap
+    pts = np.concatenate([own_upper, smear, own_lower])
+    cfg = ArticulateConfig()
+    R = 0.04  # the linkage radius infer_parts uses on a mesh of ~3 cm faces (1.5 x the spacing)
+    cands = handle_candidates([upper, lower], pts, cfg, R, 3)
+    assert cands[0][0][1] == 75  # the smear is the upper front's heaviest candidate: a "flap"
+    assert decide(describe_handle(upper, cands[0][0][0], "masks"), {}, cfg).family == "flap"
+    got, gave_up = resolve_stacked_pulls([upper, lower], cands, cfg.edge_frac)
+    assert gave_up == [(0, 1)]
+    assert decide(describe_handle(upper, got[0], "masks"), {}, cfg).family == "drawer"
+    assert decide(describe_handle(lower, got[1], "masks"), {}, cfg).family == "drawer"
+    # side by side (no stack), or the upper front with no other candidate: nothing changes
+    side = Front((0.75, Y, 0.375), (0, -1, 0), (1, 0, 0), (0.5, 0.25))
+    sc = handle_candidates([upper, side], pts, cfg, R, 3)
+    got, gave_up = resolve_stacked_pulls([upper, side], sc, cfg.edge_frac)
+    assert gave_up == [] and got[0] is sc[0][0][0]
+    # a third drawer on top whose choice is the smear of the middle one's pull: once the middle
+    # front has given up the lower one's pull for its own, the top one gives that up in turn
+    top = Front((0.25, Y, 0.8045), (0, -1, 0), (1, 0, 0), (0.5, 0.203))
+    three = np.concatenate([bar(0.89, 0.9, 25), bar(0.706, 0.73, 60), own_upper, smear, own_lower])
+    c3 = handle_candidates([top, upper, lower], three, cfg, R, 3)
+    got, gave_up = resolve_stacked_pulls([top, upper, lower], c3, cfg.edge_frac)
+    assert sorted(gave_up) == [(0, 1), (1, 2)]
+    fam = [decide(describe_handle(f, p, "masks"), {}, cfg).family for f, p in zip([top, upper, lower], got)]
+    assert fam == ["drawer"] * 3, fam
+    # vertical bars either side of the gap (a tall door over a door) are two handles
+    vbar = lambda z0, z1, n: np.stack([g.uniform(0.46, 0.47, n), np.full(n, Y - 0.03), g.uniform(z0, z1, n)], -1)  # noqa: E731
+    vc = handle_candidates([upper, lower], np.concatenate([own_upper, vbar(0.505, 0.56, 75), vbar(0.44, 0.497, 30)]),
+                           cfg, R, 3)
+    got, gave_up = resolve_stacked_pulls([upper, lower], vc, cfg.edge_frac)
+    assert gave_up == [] and got[0] is vc[0][0][0]
+    lone = handle_candidates([upper, lower], np.concatenate([smear, own_lower]), cfg, R, 3)
+    got, gave_up = resolve_stacked_pulls([upper, lower], lone, cfg.edge_frac)
+    assert gave_up == [] and got[0] is lone[0][0][0]
 
 
 def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle():

@@ -63,10 +63,11 @@ def noisy_200px(tmp_path_factory, tiny_scene):
 
 
 def test_noisy_detections_give_the_parts(noisy_200px, tmp_path):
-    # a floor, measured 0.6 / 0.75 here: edge pulls between stacked drawers are the weak point
-    # (scripts/bench_articulation.py measures the targets over 20 kitchens)
+    # a floor one part below what this fixture measures (precision and recall 1.0; 0.75 / 0.75
+    # without articulate.stacked_pulls: an edge pull between stacked drawers read as the upper
+    # one's, a flap); scripts/bench_articulation.py measures the targets over 20 kitchens
     _, res, details = pipeline(noisy_200px, tmp_path)
-    assert res["precision"] >= 0.6 and res["recall"] >= 0.75 and res["n_correct"] >= 3, details
+    assert res["precision"] >= 0.75 and res["recall"] >= 0.75 and res["n_correct"] >= 3, details
 
 
 def test_a_capture_whose_detections_are_all_empty_gives_no_segments(exact_capture, tmp_path):
