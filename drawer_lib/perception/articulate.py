@@ -180,7 +180,7 @@ def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfi
 def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray, float]]], edge_frac: float,
                           max_gap: float = 0.03, plane_tol: float = 0.02, min_overlap: float = 0.5
                           ) -> tuple[list[np.ndarray | None], list[tuple[int, int]]]:
-    """The handle of each front (its heaviest candidate) after one pass over stacked pairs.
+    """The handle of each front (its heaviest candidate) once stacked fronts share no pull.
 
     An edge pull in the gap between a front and the one below it (coplanar, edges within
     ``max_gap`` m, overlapping over ``min_overlap`` of the narrower width) is seen by both:
@@ -188,11 +188,11 @@ def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray
     may take the lower one's pull as "a handle near my bottom edge" (a flap) while the lower
     takes it as its top-edge pull. When the upper front's choice lies in its bottom ``edge_frac``
     and the lower front's in its top ``edge_frac``, both wider than tall and overlapping in width,
-    they are one pull, and it goes to the lower front: a pull in such a gap is a lip pull on the top edge of the front
-    below (the point weights cannot tell: on kitchen_tiny's drawer stack the upper front holds
-    75 of the pull's mask faces, the lower 30). The upper front takes its next candidate if it
-    has one; repeated until nothing changes (in a stack of three, the middle front's change can
-    make the top one's choice a shared pull). Returns (handle points per front or None,
+    they are one pull, and it goes to the lower front: a pull in such a gap is a lip pull on the
+    top edge of the front below (the point weights cannot tell: on kitchen_tiny's drawer stack
+    the upper front holds 75 of the pull's mask faces, the lower 30). The upper front takes its
+    next candidate if it has one; repeated until nothing changes (in a stack of three, the
+    middle front's change can make the top one's choice a shared pull). Returns (handle points per front or None,
     [(front that gave up a candidate, front below)])."""
     choice = [0 if c else -1 for c in cands]
     changed: list[tuple[int, int]] = []
