@@ -167,14 +167,17 @@ def handle_candidates(fronts: list[Front], points: np.ndarray, cfg: ArticulateCo
     return out
 
 
+def _heaviest(cands: list[list[tuple[np.ndarray, float]]]) -> list[np.ndarray | None]:
+    return [c[0][0] if c else None for c in cands]
+
+
 def assign_handles(fronts: list[Front], points: np.ndarray, cfg: ArticulateConfig, radius: float, min_points: int,
                    max_gap: float = 0.03, max_span: float = 0.85, weights: np.ndarray | None = None
                    ) -> list[np.ndarray | None]:
     """The handle points [M, 3] of each front: its heaviest candidate (:func:`handle_candidates`);
     with weights = how often the masks hold a point, the fringe that ragged masks smear onto a
     neighbour weighs less than the pull it belongs to."""
-    cands = handle_candidates(fronts, points, cfg, radius, min_points, max_gap, max_span, weights)
-    return [c[0][0] if c else None for c in cands]
+    return _heaviest(handle_candidates(fronts, points, cfg, radius, min_points, max_gap, max_span, weights))
 
 
 def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray, float]]], edge_frac: float,
@@ -182,8 +185,8 @@ def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray
                           ) -> tuple[list[np.ndarray | None], list[tuple[int, int]]]:
     """The handle of each front (its heaviest candidate) once stacked fronts share no pull.
 
-    An edge pull in the gap between a front and the one below it (coplanar, edges within
-    ``max_gap`` m, overlapping over ``min_overlap`` of the narrower width) is seen by both:
+    An edge pull in the gap between a front and the one below it (:func:`abutting_edges`) is
+    seen by both:
     masks ragged by a pixel or two at ~1.3 cm per pixel cover both sides, so the upper front
     may take the lower one's pull as "a handle near my bottom edge" (a flap) while the lower
     takes it as its top-edge pull. When the upper front's choice lies in its bottom ``edge_frac``
@@ -192,11 +195,10 @@ def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray
     top edge of the front below (the point weights cannot tell: on kitchen_tiny's drawer stack
     the upper front holds 75 of the pull's mask faces, the lower 30). The upper front takes its
     next candidate if it has one; repeated until nothing changes (in a stack of three, the
-    middle front's change can make the top one's choice a shared pull). Returns (handle points per front or None,
-    [(front that gave up a candidate, front below)])."""
+    middle front's change can make the top one's choice a shared pull). Returns (handle points
+    per front or None, [(front that gave up a candidate, front below)])."""
     choice = [0 if c else -1 for c in cands]
     changed: list[tuple[int, int]] = []
-    cos_t = np.cos(np.deg2rad(10.0))
 
     def band(k: int) -> tuple[float, float, float, bool]:
         """(u range in the front's frame, median height as a fraction of the front (0 = bottom),
@@ -207,24 +209,10 @@ def resolve_stacked_pulls(fronts: list[Front], cands: list[list[tuple[np.ndarray
         wide = bool(np.ptp(pu) > np.ptp(pv))
         return float(pu.min()), float(pu.max()), float(np.median(pv)) / max(f.size[1], 1e-9) + 0.5, wide
 
-    # stacked pairs (a above b), fixed by the geometry
-    pairs = []
-    for a, fa in enumerate(fronts):
-        for b, fb in enumerate(fronts):
-            if a == b or not cands[a] or not cands[b]:
-                continue
-            na, nb = np.asarray(fa.normal), np.asarray(fb.normal)
-            if na @ nb < cos_t or np.asarray(fa.u) @ np.asarray(fb.u) < cos_t:
-                continue
-            d = np.asarray(fb.center) - np.asarray(fa.center)  # b's centre in a's frame
-            if abs(d @ na) > plane_tol:
-                continue
-            du, dv = d @ np.asarray(fa.u), d @ fa.v
-            if dv >= 0 or abs((dv + fb.size[1] / 2) - (-fa.size[1] / 2)) > max_gap:  # b right below a
-                continue
-            over = min(fa.size[0] / 2, du + fb.size[0] / 2) - max(-fa.size[0] / 2, du - fb.size[0] / 2)
-            if over >= min_overlap * min(fa.size[0], fb.size[0]):
-                pairs.append((a, b, float(du)))
+    # stacked pairs (a above b: b abuts a's low edge along a's v), fixed by the geometry
+    pairs = [(a, b, du) for a, fa in enumerate(fronts) for b, fb in enumerate(fronts)
+             if a != b and cands[a] and cands[b]
+             for ax, side, du in abutting_edges(fa, fb, max_gap, plane_tol, min_overlap) if (ax, side) == (1, -1)]
     # until nothing changes: an upper front only ever moves on to its next candidate, so this
     # ends; a stack of three resolves from the bottom pair up
     moved = True
@@ -368,44 +356,60 @@ def _mask_uv(front: Front, mk, border_px: int) -> tuple[np.ndarray, np.ndarray] 
     return np.stack([rel @ np.asarray(front.u), rel @ front.v], -1), border[ok]
 
 
+def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_overlap: float = 0.5,
+                   max_angle_deg: float = 10.0) -> list[tuple[int, int, float]]:
+    """Where front ``b`` abuts front ``a``: [(axis, side, offset)] with axis 0 (a's u) or 1 (a's
+    v), side +1 when b lies beyond a's high edge along that axis and -1 beyond its low edge, and
+    offset = b's centre along the *other* axis in a's frame (m). Abutting: coplanar within
+    ``plane_tol`` m, same axes within ``max_angle_deg``, the facing edges under ``max_gap`` m
+    apart either way, overlapping over ``min_overlap`` of the shorter side."""
+    cos_t = np.cos(np.deg2rad(max_angle_deg))
+    na, ua, va = np.asarray(a.normal), np.asarray(a.u), a.v
+    d = np.asarray(b.center) - np.asarray(a.center)
+    if na @ np.asarray(b.normal) < cos_t or ua @ np.asarray(b.u) < cos_t or abs(d @ na) > plane_tol:
+        return []
+    du, dv = d @ ua, d @ va  # b's centre in a's frame
+    aw, ah, bw, bh = a.size[0] / 2, a.size[1] / 2, b.size[0] / 2, b.size[1] / 2
+    out = []
+    for ax, off, (alo, ahi), (blo, bhi), (olo, ohi), (oblo, obhi), other in (
+            (0, du, (-aw, aw), (du - bw, du + bw), (-ah, ah), (dv - bh, dv + bh), dv),
+            (1, dv, (-ah, ah), (dv - bh, dv + bh), (-aw, aw), (du - bw, du + bw), du)):
+        overlap = min(ohi, obhi) - max(olo, oblo)
+        if overlap < min_overlap * min(ohi - olo, obhi - oblo):
+            continue
+        if off > 0 and abs(blo - ahi) < max_gap:
+            out.append((ax, 1, float(other)))
+        elif off < 0 and abs(alo - bhi) < max_gap:
+            out.append((ax, -1, float(other)))
+    return out
+
+
 def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, min_overlap: float = 0.5,
                 max_angle_deg: float = 10.0) -> list[Front]:
-    """Fronts whose facing edges abut (coplanar within ``plane_tol`` m, same axes within
-    ``max_angle_deg``, gap between the edges under ``max_gap`` m either way, overlapping over
-    ``min_overlap`` of the shorter side) have one boundary, estimated independently from each
-    front's masks: both edges move to the midpoint of the two estimates (the mean of the
-    midpoints when an edge has several neighbours), halving the variance of a hinge edge that
-    a neighbour shares. A sliding pair, a track apart, is not coplanar and is left alone.
-    ``max_gap`` <= 0 returns the fronts unchanged."""
+    """Fronts whose facing edges abut (:func:`abutting_edges`) have one boundary, estimated
+    independently from each front's masks: both edges move to the midpoint of the two estimates
+    (the mean of the midpoints when an edge has several neighbours), halving the variance of a
+    hinge edge that a neighbour shares. A sliding pair, a track apart, is not coplanar and is
+    left alone. ``max_gap`` <= 0 returns the fronts unchanged."""
     if max_gap <= 0 or len(fronts) < 2:
         return fronts
-    cos_t = np.cos(np.deg2rad(max_angle_deg))
     # per front: (lo_u, hi_u, lo_v, hi_v) in its own frame
     ext = [[-f.size[0] / 2, f.size[0] / 2, -f.size[1] / 2, f.size[1] / 2] for f in fronts]
     props: list[list[list[float]]] = [[[], [], [], []] for _ in fronts]
     for i, a in enumerate(fronts):
-        ca, na, ua, va = np.asarray(a.center), np.asarray(a.normal), np.asarray(a.u), a.v
         for j in range(i + 1, len(fronts)):
             b = fronts[j]
-            nb, ub = np.asarray(b.normal), np.asarray(b.u)
-            d = np.asarray(b.center) - ca
-            if na @ nb < cos_t or ua @ ub < cos_t or abs(d @ na) > plane_tol:
-                continue
-            du, dv = d @ ua, d @ va  # b's centre in a's frame
-            bw, bh = b.size[0] / 2, b.size[1] / 2
-            for ax, off, (alo, ahi), (blo, bhi), (olo, ohi), (oblo, obhi) in (
-                    (0, du, ext[i][0:2], (du - bw, du + bw), ext[i][2:4], (dv - bh, dv + bh)),
-                    (1, dv, ext[i][2:4], (dv - bh, dv + bh), ext[i][0:2], (du - bw, du + bw))):
-                overlap = min(ohi, obhi) - max(olo, oblo)
-                if overlap < min_overlap * min(ohi - olo, obhi - oblo):
-                    continue
+            d = np.asarray(b.center) - np.asarray(a.center)
+            offs = (d @ np.asarray(a.u), d @ a.v)  # b's centre in a's frame
+            for ax, side, _ in abutting_edges(a, b, max_gap, plane_tol, min_overlap, max_angle_deg):
                 k = 2 * ax  # index of lo along this axis in (lo_u, hi_u, lo_v, hi_v)
-                if off > 0 and abs(blo - ahi) < max_gap:  # b beyond a's high edge
-                    m = (ahi + blo) / 2
+                off, half_b = offs[ax], b.size[ax] / 2
+                if side > 0:  # b beyond a's high edge
+                    m = (ext[i][k + 1] + (off - half_b)) / 2
                     props[i][k + 1].append(m)
                     props[j][k].append(m - off)
-                elif off < 0 and abs(alo - bhi) < max_gap:  # b beyond a's low edge
-                    m = (alo + bhi) / 2
+                else:  # b beyond a's low edge
+                    m = (ext[i][k] + (off + half_b)) / 2
                     props[i][k].append(m)
                     props[j][k + 1].append(m - off)
     out = []
@@ -582,7 +586,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     if cfg.stacked_pulls:
         by_mask, gave_up = resolve_stacked_pulls(fronts, mask_cands, cfg.edge_frac, max(cfg.shared_edge_gap, 0.03))
     else:
-        by_mask, gave_up = [c[0][0] if c else None for c in mask_cands], []
+        by_mask, gave_up = _heaviest(mask_cands), []
     handles = [describe_handle(f, m, "masks") if m is not None else describe_handle(f, g, "geometry")
                for f, g, m in zip(fronts, by_geo, by_mask)]
     seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]

@@ -115,9 +115,9 @@ class ArticulateConfig:
     ``hits`` (the largest sum over its faces of the number of views whose masks cover a face) or
     ``view_rate`` (default: the largest sum over its faces of the fraction of the views seeing a
     face in which a mask covers it); with either of the last two the fringe that ragged masks
-    smear onto a neighbour weighs less than the pull. ``stacked_pulls``: a pull in the gap between
-    a front and the one below it, which both take for their own, goes to the one holding more of
-    its weight; the other takes its next candidate
+    smear onto a neighbour weighs less than the pull. ``stacked_pulls``: a horizontal pull in the
+    gap between a front and the one below it, which both take for their own, goes to the lower
+    one (a lip pull); the upper one takes its next candidate
     (:func:`~drawer_lib.perception.articulate.resolve_stacked_pulls`)."""
 
     estimator: str = "geometric"
