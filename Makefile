@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation clean
+.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation ste-regimes clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -51,6 +51,9 @@ bench-splat: setup ## CPU rasterizer fwd+bwd vs gsplat's pure-PyTorch path (inst
 
 bench-articulation: setup ## decompose + articulate over 20 procedural kitchens: noisy, no and generic detections
 	$(BIN)/python scripts/bench_articulation.py
+
+ste-regimes: setup ## hard clip vs STE vs free 3DGS on kitchen_small under six regimes (needs `make run`; ~50 min)
+	$(BIN)/python scripts/ste_regimes.py
 
 bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro capture@kitchen_small

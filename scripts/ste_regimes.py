@@ -1,0 +1,160 @@
+#!/usr/bin/env python
+"""Where does the straight-through estimator matter? ``movable_gs`` (hard clip) against
+``movable_gs_ste`` (the paper's method) and ``free_gs`` (unconstrained, the ceiling of any
+bound handling) under regimes that make the face bounds bind harder than the default does:
+
+- ``default``: the ablation's config (kitchen_small, neural mesh decimated to 30k faces);
+- ``short``: 900 steps (no opacity reset; densification until the end);
+- ``tight_bounds``: the official code's default bounds (offset ±0.15 R, scales ≤ 0.5 R) instead
+  of its scripts' (±2 R, ≤ 2 R);
+- ``no_densify``: one Gaussian per face, no split / duplicate / cull (nothing replaces a
+  Gaussian frozen at a bound);
+- ``displaced_1cm``: the anchor mesh moved along its normals by a smooth random field
+  (1 cm rms, 10 cm correlation length; ``drawer_lib.perturb``), a reconstruction's bumps;
+- ``tsdf_anchor``: the TSDF mesh of the geometry comparison as anchor (needs
+  ``dvc repro geometry@kitchen_small-tsdf``).
+
+Each run trains and evaluates exactly as the ``appearance`` stage does (same functions, same
+test views, PSNR / SSIM / LPIPS). Runs go ``--jobs`` at a time with the cores split between
+them (the schedule is by steps, so the images do not depend on the machine's speed; the
+printed training times do). Writes ``<out>/results.jsonl`` (one row per run; ``--reuse`` skips
+rows already there) and ``<out>/summary.md``.
+
+    python scripts/ste_regimes.py                       # all regimes, seed 0 (~50 min on 2 cores)
+    python scripts/ste_regimes.py --regimes default,short --seeds 0,1 --clips hard,ste
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+REGIMES = {  # name -> (Hydra overrides, anchor mesh: "default" | "displaced" | "tsdf")
+    "default": ([], "default"),
+    "short": (["appearance.steps=900"], "default"),
+    "tight_bounds": (["appearance.bounds.elevate_coef=0.15", "appearance.bounds.upper_scale=0.5"], "default"),
+    "no_densify": (["appearance.strategy.enabled=false"], "default"),
+    "displaced_1cm": ([], "displaced"),
+    "tsdf_anchor": ([], "tsdf"),
+}
+CLIPS = {"hard": "movable_gs", "ste": "movable_gs_ste", "free": "free_gs"}
+DISPLACEMENT = {"rms_m": 0.01, "wavelength_m": 0.1, "seed": 0}
+
+
+def run_one(scene: str, regime: str, clip: str, seed: int) -> dict:
+    import torch
+    import trimesh
+    from hydra import compose, initialize_config_dir
+
+    from drawer_lib.config.typed import to_typed
+    from drawer_lib.io.capture import load_capture
+    from drawer_lib.perturb import displace_along_normals
+    from drawer_lib.splat.config import AppearanceConfig
+    from drawer_lib.splat.train import bounds_report, evaluate_images, prepare, render_test, train_gaussians
+
+    overrides, anchor = REGIMES[regime]
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"scene={scene}", f"appearance_variant={CLIPS[clip]}",
+                                                       f"seed={seed}", *overrides])
+    app = to_typed(AppearanceConfig, cfg.appearance, "appearance")
+    out = ROOT / cfg.paths.out / scene
+    cap = load_capture(out / "capture")
+    mesh_path = out / ("geometry/tsdf/mesh/mesh.ply" if anchor == "tsdf" else "mesh/mesh.ply")
+    if not mesh_path.is_file():
+        raise SystemExit(f"error: {mesh_path} is missing (dvc repro the {'geometry' if anchor == 'tsdf' else 'mesh'} "
+                         f"stage of {scene} first)")
+    mesh = trimesh.load(mesh_path, process=False)
+    extra = {}
+    if anchor == "displaced":
+        mesh, d = displace_along_normals(mesh, **DISPLACEMENT)
+        extra["displacement_rms_m"] = float((d ** 2).mean() ** 0.5)
+    sc = prepare(cap, mesh, app)
+    st = train_gaussians(cap, sc, app, seed)
+    res = evaluate_images(render_test(st.params, st.frames, app, sc), sc.test_rgb)
+    violation = bounds_report(st.params, st.frames, app) if clip != "free" else None
+    if violation is not None:
+        raise AssertionError(f"{regime}/{clip}: {violation}")
+    return {"scene": scene, "regime": regime, "clip": clip, "seed": seed, "psnr": res.psnr, "ssim": res.ssim,
+            "lpips": res.lpips, "n_gaussians": int(st.params.face.shape[0]), "steps": st.steps,
+            "train_s": round(st.train_s, 1), "threads": torch.get_num_threads(), **extra}
+
+
+def summary(rows: list[dict]) -> str:
+    lines = ["| regime | seed | hard clip PSNR / SSIM / LPIPS | STE PSNR / SSIM / LPIPS | free 3DGS PSNR / SSIM / LPIPS "
+             "| STE − hard | free − hard (headroom) |", "|---|---|---|---|---|---|---|"]
+    fmt = lambda r: f"{r['psnr']:.2f} / {r['ssim']:.4f} / {r['lpips']:.4f}" if r else "–"  # noqa: E731
+    diff = lambda a, b: f"{a['psnr'] - b['psnr']:+.2f} dB" if a and b else "–"  # noqa: E731
+    for regime in REGIMES:
+        for seed in sorted({r["seed"] for r in rows if r["regime"] == regime}):
+            by = {r["clip"]: r for r in rows if r["regime"] == regime and r["seed"] == seed}
+            h, s, f = by.get("hard"), by.get("ste"), by.get("free")
+            lines.append(f"| {regime} | {seed} | {fmt(h)} | {fmt(s)} | {fmt(f)} | {diff(s, h)} | {diff(f, h)} |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", default="kitchen_small")
+    ap.add_argument("--regimes", default=",".join(REGIMES))
+    ap.add_argument("--clips", default="hard,ste,free")
+    ap.add_argument("--seeds", default="0")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=Path("/tmp/ste_regimes"))
+    ap.add_argument("--reuse", action="store_true", help="skip runs already in <out>/results.jsonl")
+    ap.add_argument("--one", nargs=4, metavar=("SCENE", "REGIME", "CLIP", "SEED"), help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.one:
+        print(json.dumps(run_one(a.one[0], a.one[1], a.one[2], int(a.one[3]))))
+        return
+    regimes, clips = a.regimes.split(","), a.clips.split(",")
+    for name, known in (("regime", REGIMES), ("clip", CLIPS)):
+        bad = [x for x in (regimes if name == "regime" else clips) if x not in known]
+        if bad:
+            raise SystemExit(f"error: unknown {name} {bad}; choose from {list(known)}")
+    seeds = [int(s) for s in a.seeds.split(",")]
+    a.out.mkdir(parents=True, exist_ok=True)
+    res_file = a.out / "results.jsonl"
+    rows = [json.loads(line) for line in res_file.read_text().splitlines()] if a.reuse and res_file.is_file() else []
+    if not a.reuse:
+        res_file.write_text("")
+    done = {(r["scene"], r["regime"], r["clip"], r["seed"]) for r in rows}
+    todo = [(a.scene, g, c, s) for g in regimes for s in seeds for c in clips if (a.scene, g, c, s) not in done]
+    threads = max(1, (os.cpu_count() or 2) // max(a.jobs, 1))
+    env = {**os.environ, **{k: str(threads) for k in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")}}
+    running: list[tuple[tuple, subprocess.Popen, float]] = []
+    print(f"{len(todo)} runs, {a.jobs} at a time, {threads} thread(s) each")
+    while todo or running:
+        while todo and len(running) < a.jobs:
+            job = todo.pop(0)
+            cmd = [sys.executable, __file__, "--one", job[0], job[1], job[2], str(job[3])]
+            running.append((job, subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True), time.time()))
+        time.sleep(2)
+        for item in list(running):
+            job, proc, t0 = item
+            if proc.poll() is None:
+                continue
+            running.remove(item)
+            out = proc.stdout.read().strip().splitlines()
+            if proc.returncode != 0 or not out:
+                print(f"{'/'.join(map(str, job))}: failed (exit {proc.returncode})", file=sys.stderr)
+                continue
+            row = json.loads(out[-1])
+            rows.append(row)
+            with res_file.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+            print(f"{row['regime']:>14} {row['clip']:>4} seed {row['seed']}: PSNR {row['psnr']:.2f} SSIM {row['ssim']:.4f} "
+                  f"LPIPS {row['lpips']:.4f}, {row['n_gaussians']} Gaussians, {row['train_s']:.0f} s "
+                  f"({time.time() - t0:.0f} s wall)", flush=True)
+    text = summary(rows)
+    (a.out / "summary.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
