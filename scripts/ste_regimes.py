@@ -20,7 +20,7 @@ them (the schedule is by steps, so the images do not depend on the machine's spe
 printed training times do). Writes ``<out>/results.jsonl`` (one row per run; ``--reuse`` skips
 rows already there) and ``<out>/summary.md``.
 
-    python scripts/ste_regimes.py                       # all regimes, seed 0 (~50 min on 2 cores)
+    python scripts/ste_regimes.py                       # all regimes, seed 0 (~90 min on 2 cores)
     python scripts/ste_regimes.py --regimes default,short --seeds 0,1 --clips hard,ste
 """
 
