@@ -88,8 +88,13 @@ def run_one(scene: str, regime: str, clip: str, seed: int) -> dict:
 def summary(rows: list[dict]) -> str:
     lines = ["| regime | seed | hard clip PSNR / SSIM / LPIPS | STE PSNR / SSIM / LPIPS | free 3DGS PSNR / SSIM / LPIPS "
              "| STE − hard | free − hard (headroom) |", "|---|---|---|---|---|---|---|"]
-    fmt = lambda r: f"{r['psnr']:.2f} / {r['ssim']:.4f} / {r['lpips']:.4f}" if r else "–"  # noqa: E731
-    diff = lambda a, b: f"{a['psnr'] - b['psnr']:+.2f} dB" if a and b else "–"  # noqa: E731
+
+    def fmt(r: dict | None) -> str:
+        return f"{r['psnr']:.2f} / {r['ssim']:.4f} / {r['lpips']:.4f}" if r else "–"
+
+    def diff(a: dict | None, b: dict | None) -> str:
+        return f"{a['psnr'] - b['psnr']:+.2f} dB" if a and b else "–"
+
     for regime in REGIMES:
         for seed in sorted({r["seed"] for r in rows if r["regime"] == regime}):
             by = {r["clip"]: r for r in rows if r["regime"] == regime and r["seed"] == seed}
@@ -113,8 +118,8 @@ def main() -> None:
         print(json.dumps(run_one(a.one[0], a.one[1], a.one[2], int(a.one[3]))))
         return
     regimes, clips = a.regimes.split(","), a.clips.split(",")
-    for name, known in (("regime", REGIMES), ("clip", CLIPS)):
-        bad = [x for x in (regimes if name == "regime" else clips) if x not in known]
+    for name, given, known in (("regime", regimes, REGIMES), ("clip", clips, CLIPS)):
+        bad = [x for x in given if x not in known]
         if bad:
             raise SystemExit(f"error: unknown {name} {bad}; choose from {list(known)}")
     seeds = [int(s) for s in a.seeds.split(",")]

@@ -578,8 +578,6 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         if len(face_views) != len(handle_hits):
             raise ValueError(f"infer_parts: face_views has {len(face_views)} entries, handle_hits {len(handle_hits)}")
         hit_w = np.clip(handle_hits[hit_faces] / np.maximum(face_views[hit_faces], 1), 0.0, 1.0)
-    elif cfg.handle_evidence == "hits" and handle_hits is not None:
-        hit_w = handle_hits[hit_faces].astype(float)
     by_geo = assign_handles(fronts, geo_pts, cfg, 0.015, 10)
     spacing = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
     mask_cands = handle_candidates(fronts, fc[hit_faces], cfg, max(0.015, 1.5 * spacing), 3, weights=hit_w)

@@ -111,11 +111,10 @@ class ArticulateConfig:
     carcass depth the mesh shows behind the front (``default_depth`` when it shows none).
     Coplanar fronts whose facing edges lie within ``shared_edge_gap`` (m; 0 = off) of each
     other share one boundary: the mean of the two estimates. ``handle_evidence``: how a front
-    picks its handle among the clusters of handle-mask faces on it: ``count`` (the most faces),
-    ``hits`` (the largest sum over its faces of the number of views whose masks cover a face) or
+    picks its handle among the clusters of handle-mask faces on it: ``count`` (the most faces) or
     ``view_rate`` (default: the largest sum over its faces of the fraction of the views seeing a
-    face in which a mask covers it); with either of the last two the fringe that ragged masks
-    smear onto a neighbour weighs less than the pull. ``stacked_pulls``: a horizontal pull in the
+    face in which a mask covers it; the fringe that ragged masks smear onto a neighbour weighs
+    less than the pull). ``stacked_pulls``: a horizontal pull in the
     gap between a front and the one below it, which both take for their own, goes to the lower
     one (a lip pull); the upper one takes its next candidate
     (:func:`~drawer_lib.perception.articulate.resolve_stacked_pulls`)."""
@@ -143,8 +142,8 @@ class ArticulateConfig:
             raise ConfigError(f"articulate.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if not 0 < self.handle_min < self.handle_max:
             raise ConfigError("articulate: need 0 < handle_min < handle_max")
-        if self.handle_evidence not in ("count", "hits", "view_rate"):
-            raise ConfigError(f"articulate.handle_evidence = {self.handle_evidence!r} must be count, hits or view_rate")
+        if self.handle_evidence not in ("count", "view_rate"):
+            raise ConfigError(f"articulate.handle_evidence = {self.handle_evidence!r} must be count or view_rate")
         if self.shared_edge_gap < 0:
             raise ConfigError(f"articulate.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
         if self.revolute_limit_deg <= 0 or self.drawer_travel <= 0:

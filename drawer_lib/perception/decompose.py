@@ -233,19 +233,14 @@ def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, res
             seen.add(key)
             out.append(np.sort(f))
 
-    # the connected components of the graph (the coarsest split), then Louvain at each resolution
-    lab = connected_components(n_faces, edges)
-    deg = np.bincount(edges.ravel(), minlength=n_faces) if len(edges) else np.zeros(n_faces, np.int64)
-    for c in np.unique(lab[deg > 0]):
-        add(np.nonzero((lab == c) & (deg > 0))[0])
-    for rate in component_rates:
-        keep = weights >= rate
-        ek = edges[keep]
+    # the connected components of the graph (the coarsest split) and of the graph cut at each
+    # rate, then Louvain at each resolution
+    for ek in [edges, *(edges[weights >= rate] for rate in component_rates)]:
         lab = connected_components(n_faces, ek)
-        dk = np.bincount(ek.ravel(), minlength=n_faces) if len(ek) else np.zeros(n_faces, np.int64)
-        ids, cnt = np.unique(lab[dk > 0], return_counts=True)
+        deg = np.bincount(ek.ravel(), minlength=n_faces) if len(ek) else np.zeros(n_faces, np.int64)
+        ids, cnt = np.unique(lab[deg > 0], return_counts=True)
         for c in ids[cnt >= min_faces]:
-            add(np.nonzero((lab == c) & (dk > 0))[0])
+            add(np.nonzero((lab == c) & (deg > 0))[0])
     G = nx.Graph()
     G.add_weighted_edges_from(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), weights.tolist()))
     retries, skipped = 0, []
