@@ -52,7 +52,7 @@ bench-splat: setup ## CPU rasterizer fwd+bwd vs gsplat's pure-PyTorch path (inst
 bench-articulation: setup ## decompose + articulate over 20 procedural kitchens: noisy, no and generic detections
 	$(BIN)/python scripts/bench_articulation.py
 
-ste-regimes: setup ## hard clip vs STE vs free 3DGS on kitchen_small under six regimes (needs `make run`; ~90 min)
+ste-regimes: setup ## hard clip vs STE vs free 3DGS on kitchen_small: position lr sweep and five harder-bound regimes (needs `make run`; ~2 h)
 	$(BIN)/python scripts/ste_regimes.py
 
 bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
