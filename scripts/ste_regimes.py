@@ -5,9 +5,9 @@ bound handling), trained under different regimes:
 
 - ``default``: the ablation's config (kitchen_small, neural mesh decimated to 30k faces,
   position learning rate 4.8e-3);
-- ``pos_lr_<lr>``: the position learning rate swept (the STE lets a Gaussian that crossed its
+- ``pos_lr_<lr>``: other position learning rates (the STE lets a Gaussian that crossed its
   bound come back; the hard clip freezes it there, so the faster the positions move relative
-  to their faces, the more the two differ); with ``official_lr`` this draws
+  to their faces, the more the two differ); with ``official_lr`` and ``default`` they draw
   ``<out>/position_lr.png``;
 - at the official code's position rate 1.6e-4 (the first study, where the bounds were made to
   bind harder): ``official_lr``; ``short``: 900 steps (no opacity reset; densification until
@@ -41,10 +41,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+
+def lr_overrides(lr: str) -> list[str]:
+    """Hydra overrides setting the initial position learning rate, decayed 100x as by default."""
+    return [f"appearance.lr.position={lr}", f"appearance.lr.position_final={float(lr) / 100:g}"]
+
+
 # The regimes of the first study ran at the official code's position learning rate (1.6e-4 per
 # step); they pin it so their numbers reproduce whatever the stage's default becomes.
-OFFICIAL_LR = ["appearance.lr.position=1.6e-4", "appearance.lr.position_final=1.6e-6"]
-POS_LRS = ("1.2e-3", "4.8e-3", "1.6e-2")  # x7.5, x30, x100 the official rate (x1: official_lr)
+OFFICIAL_LR = lr_overrides("1.6e-4")
+POS_LRS = ("1.2e-3", "1.6e-2")  # with official_lr (1.6e-4) and default (4.8e-3): the learning-rate sweep
 REGIMES = {  # name -> (Hydra overrides, anchor mesh: "default" | "displaced" | "tsdf")
     "default": ([], "default"),
     "official_lr": (OFFICIAL_LR, "default"),
@@ -54,8 +60,7 @@ REGIMES = {  # name -> (Hydra overrides, anchor mesh: "default" | "displaced" | 
     "no_densify": ([*OFFICIAL_LR, "appearance.strategy.enabled=false"], "default"),
     "displaced_1cm": (OFFICIAL_LR, "displaced"),
     "tsdf_anchor": (OFFICIAL_LR, "tsdf"),
-    **{f"pos_lr_{lr}": ([f"appearance.lr.position={lr}", f"appearance.lr.position_final={float(lr) / 100:g}"], "default")
-       for lr in POS_LRS},
+    **{f"pos_lr_{lr}": (lr_overrides(lr), "default") for lr in POS_LRS},
 }
 CLIPS = {"hard": "movable_gs", "ste": "movable_gs_ste", "free": "free_gs"}
 DISPLACEMENT = {"rms_m": 0.01, "wavelength_m": 0.1, "seed": 0}
@@ -138,12 +143,13 @@ def plot_lr(rows: list[dict], path: Path, seed: int = 0) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    lrs = {g: lr_of(g) for g in REGIMES}
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     drawn = False
     for clip, colour in (("hard", "tab:red"), ("ste", "tab:blue"), ("free", "tab:gray")):
         pts: dict[float, list[float]] = {}
         for r in rows:
-            lr = lr_of(r["regime"]) if r["regime"] in REGIMES else None
+            lr = lrs.get(r["regime"])
             if r["clip"] == clip and r["seed"] == seed and lr is not None:
                 pts.setdefault(lr, []).append(r["psnr"])
         if len(pts) < 2:
@@ -154,8 +160,8 @@ def plot_lr(rows: list[dict], path: Path, seed: int = 0) -> bool:
     if not drawn:
         plt.close(fig)
         return False
-    ax.axvline(lr_of("default"), color="k", ls=":", lw=1, label="default")
-    ax.axvline(lr_of("official_lr"), color="k", ls="--", lw=1, label="official code")
+    ax.axvline(lrs["default"], color="k", ls=":", lw=1, label="default")
+    ax.axvline(lrs["official_lr"], color="k", ls="--", lw=1, label="official code")
     ax.set_xscale("log")
     ax.set_xlabel("position learning rate (m / step, decayed 100x over the schedule)")
     ax.set_ylabel(f"test PSNR (dB), seed {seed}")
