@@ -14,10 +14,13 @@ ends with a one-line message naming the file or value and exit code 2.
 import csv
 import functools
 import math
+import os
 import random
 import resource
 import shutil
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -29,6 +32,7 @@ from tqdm import tqdm
 from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.io.images import write_json
 from drawer_lib.io.manifest import Manifest
+from drawer_lib.paths import LAYOUT, stage_name
 
 EXIT_BAD_INPUT = 2
 
@@ -102,7 +106,12 @@ class StageRun:
         """A log line that does not break the progress bars."""
         tqdm.write(f"[{self.stage}] {msg}", file=sys.stderr)
 
-    def curve(self, columns: list[str], name: str = "curve.csv") -> Curve:
+    def out(self, key: str) -> Path:
+        """Where output ``key`` of this stage goes (:data:`drawer_lib.paths.LAYOUT`), inside the
+        temporary folder that replaces the stage's folder on success."""
+        return self.dir / stage_name(self.stage, key)
+
+    def curve(self, columns: list[str], name: str = LAYOUT["curve"]) -> Curve:
         c = Curve(self.dir / name, columns, self.t0)
         self._curves.append(c)
         return c
@@ -131,7 +140,7 @@ class StageRun:
         m["peak_rss_mb"] = round(peak_rss_mb(), 1)
         if self.skipped:
             m["skipped"] = dict(self.skipped)
-        write_json(self.dir / "metrics.json", m)
+        write_json(self.dir / LAYOUT["metrics"], m)
         return m
 
 
@@ -142,31 +151,96 @@ def _remove(p: Path) -> None:
         p.unlink()
 
 
+_OWNER = ".owner"  # pid of the process writing a temporary folder
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def clean_stale(parent: Path) -> list[Path]:
+    """Remove the temporary folders (``.<name>.tmp``) under ``parent`` whose writer is gone (an
+    interrupted stage of any kind; a live run elsewhere keeps its own), and put back a result
+    whose swap was cut between its two renames (``.<name>.old`` without ``<name>``). Returns the
+    removed folders."""
+    removed = []
+    if not Path(parent).is_dir():
+        return removed
+    for old in Path(parent).glob(".*.old"):
+        final = old.with_name(old.name[1:-len(".old")])
+        if not (final.exists() or final.is_symlink()):
+            old.rename(final)
+    for tmp in Path(parent).glob(".*.tmp"):
+        try:
+            pid = int((tmp / _OWNER).read_text())
+        except (OSError, ValueError):
+            pid = -1
+        if pid != os.getpid() and (pid <= 0 or not _alive(pid)):
+            _remove(tmp)
+            removed.append(tmp)
+    return removed
+
+
 @contextmanager
 def stage_run(stage: str, out_dir: Path, seed: int) -> Iterator[StageRun]:
-    """Run a stage into a temporary sibling of ``out_dir`` and swap it in on success."""
+    """Run a stage into a temporary sibling of ``out_dir`` and swap it in on success.
+
+    On the way in, what interrupted runs left in that folder goes (:func:`clean_stale`); SIGTERM
+    and SIGHUP (a killed ``dvc repro``, a closed terminal) end the stage like Ctrl-C, removing
+    its temporary folder."""
     out_dir = Path(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_dir.parent / f".{out_dir.name}.tmp"
     old = out_dir.parent / f".{out_dir.name}.old"
-    for stale in (tmp, old):
+    clean_stale(out_dir.parent)
+    for stale in (tmp, old):  # this stage's own leftovers, whoever wrote them
         _remove(stale)
     tmp.mkdir()
+    (tmp / _OWNER).write_text(str(os.getpid()))
     run = StageRun(stage, out_dir, tmp, seed)
+    handlers = _interrupt_on_signals()
     try:
         yield run
         metrics = run._finish()
+        (tmp / _OWNER).unlink()
     except BaseException:
         for c in run._curves:
             c.close()
         _remove(tmp)
         raise
+    finally:
+        _restore(handlers)
     if out_dir.exists() or out_dir.is_symlink():
         out_dir.rename(old)
     tmp.rename(out_dir)
     _remove(old)
     print(f"[{stage}] done in {metrics['wall_s']:.1f} s, peak {metrics['peak_rss_mb']:.0f} MiB -> {out_dir}",
           file=sys.stderr)
+
+
+def _interrupt_on_signals() -> dict:
+    """SIGTERM / SIGHUP raise KeyboardInterrupt (main thread only); returns the old handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def _raise(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    old = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        old[sig] = signal.signal(sig, _raise)
+    return old
+
+
+def _restore(handlers: dict) -> None:
+    for sig, h in handlers.items():
+        signal.signal(sig, h)
 
 
 def main_guard(fn: Callable) -> Callable:

@@ -17,7 +17,7 @@ scene) and pooled over all parts; writes ``<out>/results.json`` and ``<out>/summ
     python scripts/bench_articulation.py [--n 20] [--modes noisy,generic,off] [--out /tmp/bench_articulation]
     python scripts/bench_articulation.py --reuse     # after a perception change: same captures and meshes
     python scripts/bench_articulation.py --reuse --kitchens 1,10 --modes noisy   # a subset
-    python scripts/bench_articulation.py --reuse --set articulate.handle_evidence=view_rate
+    python scripts/bench_articulation.py --reuse --set articulate.handles.evidence=count
                                      # a config variant: results_<overrides>.json / summary_<overrides>.md
 """
 
@@ -33,17 +33,19 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from drawer_lib.articulation.config import ArticulateConfig  # noqa: E402
+from drawer_lib.articulation.pipeline import run_articulate  # noqa: E402
 from drawer_lib.capture.build import build_capture  # noqa: E402
 from drawer_lib.capture.config import CaptureConfig, SceneConfig  # noqa: E402
 from drawer_lib.config.typed import to_typed  # noqa: E402
 from drawer_lib.io.capture import load_capture  # noqa: E402
-from drawer_lib.io.manifest import read_manifest  # noqa: E402
 from drawer_lib.io.parts import read_parts  # noqa: E402
 from drawer_lib.mesh.config import MeshConfig  # noqa: E402
 from drawer_lib.mesh.pipeline import run_mesh  # noqa: E402
 from drawer_lib.metrics.articulation import articulation_metrics  # noqa: E402
-from drawer_lib.perception.config import ArticulateConfig, DecomposeConfig  # noqa: E402
-from drawer_lib.perception.pipeline import eval_views, run_articulate, run_decompose  # noqa: E402
+from drawer_lib.paths import ScenePaths, capture_name  # noqa: E402
+from drawer_lib.perception.config import DecomposeConfig  # noqa: E402
+from drawer_lib.perception.pipeline import run_decompose  # noqa: E402
 from drawer_lib.runner import StageRun  # noqa: E402
 from drawer_lib.sdf.config import SdfConfig  # noqa: E402
 from drawer_lib.sdf.io import load_field  # noqa: E402
@@ -71,7 +73,7 @@ def scene_overrides(k: int) -> list[str]:
 def one(k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...] = ()) -> dict:
     cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *scene_overrides(k),
                    *extra])
-    scene = to_typed(SceneConfig, cfg.scene, "scene")
+    scene = to_typed(SceneConfig, cfg.scene, "scene", strict=False)
     capcfg = to_typed(CaptureConfig, cfg.capture, "capture")
     d = out / f"k{k:02d}_{mode}"
     cap_dir = d / "capture"
@@ -89,22 +91,21 @@ def one(k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...
         build_capture(f"bench_{k}", scene, capcfg, cap_dir, np.random.default_rng(k), ROOT)
         times = {"capture_s": time.perf_counter() - t0}
     cap = load_capture(cap_dir)
-    man = read_manifest(cap_dir / "manifest.json")
-    stages = (("sdf", lambda r, o: run_sdf(to_typed(SdfConfig, cfg.sdf, "sdf"), cap, man, r, o)),
-              ("mesh", lambda r, o: run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(d / "sdf" / "field.pt"),
-                                             cap, man, r, o)),
-              ("decompose", lambda r, o: run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), cap, man,
-                                                       d / "mesh" / "mesh.ply", r, o)),
-              ("articulate", lambda r, o: run_articulate(to_typed(ArticulateConfig, cfg.articulate, "articulate"), cap,
-                                                         d / "decompose", o)))
+    sp = ScenePaths(out, d.name)
+    stages = (("sdf", lambda r: run_sdf(to_typed(SdfConfig, cfg.sdf, "sdf"), cap, r)),
+              ("mesh", lambda r: run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(sp.field), cap, r)),
+              ("decompose", lambda r: run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), cap, sp.mesh,
+                                                    r)),
+              ("articulate", lambda r: run_articulate(to_typed(ArticulateConfig, cfg.articulate, "articulate"), cap,
+                                                      sp.decompose, r)))
     for stage, fn in stages[2:] if kept else stages:
         t = time.perf_counter()
-        o = d / stage
+        o = sp.stage_dir(stage)
         o.mkdir()
-        fn(StageRun(stage, o, o, 0), o)
+        fn(StageRun(stage, o, o, 0))
         times[f"{stage}_s"] = time.perf_counter() - t
-    res, details = articulation_metrics(read_parts(d / "articulate" / "parts.json"), read_parts(cap_dir / "gt" / "parts.json"),
-                                        eval_views(cap))
+    res, details = articulation_metrics(read_parts(sp.parts), read_parts(cap_dir / capture_name("gt_parts")),
+                                        cap.cameras(cap.test))
     (d / "matches.json").write_text(json.dumps(details, indent=1))
     row = {"kitchen": k, "mode": mode, **res, **{t: round(v, 2) for t, v in times.items()},
            "eas": [r["ea_score"] for r in details if r.get("ea_score") is not None]}

@@ -21,7 +21,8 @@ import types
 import numpy as np
 import torch
 
-from drawer_lib.splat.render import Camera, Gaussians, render
+from drawer_lib.geometry.camera import Camera, Intrinsics
+from drawer_lib.splat.render import Gaussians, render
 
 SH_DEGREE = 3
 
@@ -130,12 +131,13 @@ def gsplat_reference(params, cam: Camera, tile: int = 16):
         sys.modules["nerfacc"] = mod
     Wr.rasterize_to_indices_in_range = _rasterize_to_indices_in_range
     means, quats, scales, opac, sh = params
-    fx, fy, cx, cy = cam.K
+    fx, fy, cx, cy = cam.intrinsics.params
     Ks = torch.tensor([[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]], dtype=means.dtype)
+    viewmat = torch.as_tensor(cam.w2c, dtype=means.dtype)
     covars, _ = T._quat_scale_to_covar_preci(quats, scales, compute_covar=True, compute_preci=False, triu=False)
-    radii, means2d, depths, conics, _ = T._fully_fused_projection(means, covars, cam.viewmat[None], Ks, cam.width,
+    radii, means2d, depths, conics, _ = T._fully_fused_projection(means, covars, viewmat[None], Ks, cam.width,
                                                                   cam.height, eps2d=0.3)
-    dirs = means[None] - cam.center[None, None]
+    dirs = means[None] - torch.as_tensor(cam.center, dtype=means.dtype)[None, None]
     colors = torch.clamp_min(T._spherical_harmonics(SH_DEGREE, dirs, sh[None]) + 0.5, 0.0)
     tw, th = math.ceil(cam.width / tile), math.ceil(cam.height / tile)
     flat, offsets = _isect_tiles(means2d.detach(), radii, depths.detach(), tile, tw, th)
@@ -171,7 +173,7 @@ def main() -> None:
           f"{'max |rgb diff|':>14}")
     for size in a.sizes:
         W, H = map(int, size.split("x"))
-        cam = Camera(torch.eye(4), (0.8 * W, 0.8 * W, W / 2, H / 2), W, H)
+        cam = Camera(Intrinsics(0.8 * W, 0.8 * W, W / 2, H / 2, W, H), np.eye(4))
         for n in a.counts:
             params = [t.clone().requires_grad_(True) for t in scene(n)]
 

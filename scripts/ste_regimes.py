@@ -57,7 +57,7 @@ REGIMES = {  # name -> (Hydra overrides, anchor mesh: "default" | "displaced" | 
     "short": ([*OFFICIAL_LR, "appearance.steps=900"], "default"),
     "tight_bounds": ([*OFFICIAL_LR, "appearance.bounds.elevate_coef=0.15", "appearance.bounds.upper_scale=0.5"],
                      "default"),
-    "no_densify": ([*OFFICIAL_LR, "appearance.strategy.enabled=false"], "default"),
+    "no_densify": ([*OFFICIAL_LR, "appearance.strategy=null"], "default"),
     "displaced_1cm": (OFFICIAL_LR, "displaced"),
     "tsdf_anchor": (OFFICIAL_LR, "tsdf"),
     **{f"pos_lr_{lr}": (lr_overrides(lr), "default") for lr in POS_LRS},

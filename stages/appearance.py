@@ -1,6 +1,7 @@
 """DVC stage ``appearance@<scene>-<variant>``: capture + mesh -> ``out/<scene>/appearance/<variant>/``
-(``gaussians.ply`` + ``binding.npz`` (face of each Gaussian), test ``renders/``,
-``metrics.json`` with PSNR / SSIM / LPIPS, ``curve.csv`` of test PSNR against training time).
+(``model/``: ``gaussians.ply`` + ``binding.npz`` (face of each Gaussian) or the textured mesh,
+test ``renders/``, ``metrics.json`` with PSNR / SSIM / LPIPS, ``curve.csv`` of test PSNR
+against training time).
 
     python -m stages.appearance scene=kitchen_small                                  # interactive, the paper's method
     python -m stages.appearance scene=kitchen_small appearance_variant=static_gs     # an ablation variant
@@ -10,7 +11,7 @@
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import geometry_dir, out_root, scene_of
+from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.runner import main_guard, stage_run
@@ -21,14 +22,12 @@ from drawer_lib.splat.pipeline import run_appearance
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 @main_guard
 def main(cfg: DictConfig) -> None:
-    scene, _ = scene_of(cfg)
+    scene = scene_name(cfg)
     app = to_typed(AppearanceConfig, cfg.appearance, "appearance")
-    cap = load_capture(geometry_dir(cfg, scene, "capture", output=False))
-    mesh = geometry_dir(cfg, scene, "mesh", output=False) / "mesh.ply"
-    variant = app.variant
-    with stage_run("appearance", out_root(cfg) / scene / "appearance" / variant, seed=cfg.seed) as run:
-        field = geometry_dir(cfg, scene, "sdf", output=False) / "field.pt"
-        run.metrics.update(run_appearance(app, cap, mesh, run, run.dir, field))
+    src, dst = scene_paths(cfg, scene)
+    cap = load_capture(src.capture)
+    with stage_run("appearance", dst.appearance_dir(app.variant), seed=cfg.seed) as run:
+        run.metrics.update(run_appearance(app, cap, src.mesh, run, src.field))
 
 
 if __name__ == "__main__":

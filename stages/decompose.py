@@ -9,10 +9,9 @@
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import geometry_dir, scene_of, stage_dir
+from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
-from drawer_lib.io.manifest import read_manifest
 from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.perception.pipeline import run_decompose
 from drawer_lib.runner import main_guard, stage_run
@@ -21,14 +20,12 @@ from drawer_lib.runner import main_guard, stage_run
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 @main_guard
 def main(cfg: DictConfig) -> None:
-    scene, _ = scene_of(cfg)
+    scene = scene_name(cfg)
     dc = to_typed(DecomposeConfig, cfg.decompose, "decompose")
-    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
-    manifest = read_manifest(cap_dir / "manifest.json")
-    cap = load_capture(cap_dir)
-    mesh = geometry_dir(cfg, scene, "mesh", output=False) / "mesh.ply"
-    with stage_run("decompose", stage_dir(cfg, scene, "decompose"), seed=cfg.seed) as run:
-        run.metrics.update(run_decompose(dc, cap, manifest, mesh, run, run.dir))
+    src, dst = scene_paths(cfg, scene)
+    cap = load_capture(src.capture)
+    with stage_run("decompose", dst.decompose, seed=cfg.seed) as run:
+        run.metrics.update(run_decompose(dc, cap, src.mesh, run))
 
 
 if __name__ == "__main__":

@@ -5,28 +5,23 @@ prediction matched which GT part). Scenes without GT record the skip and its rea
     python -m stages.evaluate -cn dvc_stage scene=kitchen_small
 """
 
-from pathlib import Path
-
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import geometry_dir, scene_of, stage_dir
+from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.io.capture import load_capture
-from drawer_lib.io.manifest import read_manifest
-from drawer_lib.perception.pipeline import run_evaluate
+from drawer_lib.metrics.evaluate import run_evaluate
 from drawer_lib.runner import main_guard, stage_run
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 @main_guard
 def main(cfg: DictConfig) -> None:
-    scene, _ = scene_of(cfg)
-    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
-    manifest = read_manifest(cap_dir / "manifest.json")
-    cap = load_capture(cap_dir, check_files=False)
-    parts = Path(cfg.paths.out) / scene / "articulate" / "parts.json"
-    with stage_run("evaluate", stage_dir(cfg, scene, "evaluate"), seed=cfg.seed) as run:
-        run.metrics.update(run_evaluate(cap, manifest, parts, run, run.dir))
+    scene = scene_name(cfg)
+    src, dst = scene_paths(cfg, scene)
+    cap = load_capture(src.capture, check_files=False)
+    with stage_run("evaluate", dst.stage_dir("evaluate"), seed=cfg.seed) as run:
+        run.metrics.update(run_evaluate(cap, src.parts, run))
 
 
 if __name__ == "__main__":

@@ -10,10 +10,9 @@
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import geometry_dir, scene_of
+from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
-from drawer_lib.io.manifest import read_manifest
 from drawer_lib.mesh.config import MeshConfig
 from drawer_lib.mesh.pipeline import run_mesh
 from drawer_lib.runner import main_guard, stage_run
@@ -23,14 +22,13 @@ from drawer_lib.sdf.io import load_field
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 @main_guard
 def main(cfg: DictConfig) -> None:
-    scene, _ = scene_of(cfg)
+    scene = scene_name(cfg)
     mesh_cfg = to_typed(MeshConfig, cfg.mesh, "mesh")
-    cap_dir = geometry_dir(cfg, scene, "capture", output=False)
-    manifest = read_manifest(cap_dir / "manifest.json")
-    cap = load_capture(cap_dir, check_files=False)
-    field = load_field(geometry_dir(cfg, scene, "sdf", output=False) / "field.pt")
-    with stage_run("mesh", geometry_dir(cfg, scene, "mesh"), seed=cfg.seed) as run:
-        run.metrics.update(run_mesh(mesh_cfg, field, cap, manifest, run, run.dir))
+    src, dst = scene_paths(cfg, scene)
+    cap = load_capture(src.capture, check_files=False)
+    field = load_field(src.field)
+    with stage_run("mesh", dst.stage_dir("mesh"), seed=cfg.seed) as run:
+        run.metrics.update(run_mesh(mesh_cfg, field, cap, run))
 
 
 if __name__ == "__main__":

@@ -44,3 +44,36 @@ def run_stage(module: str, tmp: Path, *args: str):
     return subprocess.run([sys.executable, "-m", f"stages.{module}", "scene=kitchen_tiny", f"paths.out={tmp / 'out'}",
                            f"paths.reports={tmp / 'reports'}", *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
+
+
+NS_DIST = (-0.12, 0.03, 0.001, -0.0008)  # a barrel lens, as COLMAP's OPENCV model fits phone cameras
+
+
+def write_ns_capture(src: Path, out: Path, dist=NS_DIST, quality: int = 95) -> None:
+    """The capture at ``src`` (pinhole) as ``ns-process-data`` writes a COLMAP capture: the
+    images seen through a lens with OPENCV distortion ``dist`` (same fl_x, fl_y, cx, cy),
+    saved as JPEG, ``camera_model: OPENCV`` with k1, k2, p1, p2, ``applied_transform``, no
+    train / test lists, no depth or other modalities."""
+    import json
+
+    from PIL import Image
+
+    from drawer_lib.geometry.camera import pixel_dirs
+    from drawer_lib.geometry.distortion import remap, undistort
+    from drawer_lib.io.capture import load_capture
+
+    cap = load_capture(src)
+    it = cap.intrinsics
+    # where each pixel of the distorted image looks: undistort its normalised coordinates
+    xy = undistort(pixel_dirs(it)[..., :2], dist)
+    rows, cols = xy[..., 1] * it.fy + it.cy - 0.5, xy[..., 0] * it.fx + it.cx - 0.5
+    (out / "images").mkdir(parents=True)
+    frames = []
+    for k, fr in enumerate(cap.frames):
+        name = f"images/frame_{k + 1:05d}.jpg"
+        Image.fromarray(remap(cap.image(k), rows, cols)).save(out / name, quality=quality)
+        frames.append({"file_path": name, "transform_matrix": np.asarray(fr.c2w_gl).tolist(), "colmap_im_id": k + 1})
+    tf = {"w": it.width, "h": it.height, "fl_x": it.fx, "fl_y": it.fy, "cx": it.cx, "cy": it.cy,
+          "k1": dist[0], "k2": dist[1], "p1": dist[2], "p2": dist[3], "camera_model": "OPENCV", "frames": frames,
+          "applied_transform": [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0]]}
+    (out / "transforms.json").write_text(json.dumps(tf, indent=4))

@@ -23,14 +23,17 @@ IGNORE = shutil.ignore_patterns(".venv", "out", "multirun", "outputs", ".git", "
 FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.steps=8", "sdf.neural.eval_every=4",
                "sdf.neural.sampling.groups=2", "sdf.neural.sampling.rays_per_group=32", "mesh.cell=0.04",
                "mesh.eval_points=5000", "appearance.steps=4", "appearance.eval_every=2", "appearance.max_faces=3000",
-               "appearance.texture_cell=0.05", "appearance.strategy.enabled=false",
+               "appearance.texture_cell=0.05", "appearance.strategy=null",
                "appearance_variants=[textured_mesh,movable_gs_ste]"]
 
 
-@pytest.fixture(scope="module")
-def repo(tmp_path_factory):
+def make_repo(tmp_path_factory, params: list[str], prepare=None):
+    """A git repository holding a copy of the project with ``params`` composed into params.yaml;
+    ``prepare(root)`` adds files first. Returns (root, run)."""
     d = tmp_path_factory.mktemp("repo") / "drawer"
     shutil.copytree(ROOT, d, ignore=IGNORE)
+    if prepare is not None:
+        prepare(d)
     home = d.parent / "home"
     home.mkdir()
     env = dict(os.environ)
@@ -50,11 +53,16 @@ def repo(tmp_path_factory):
             raise AssertionError(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}\n{r.stderr}")
         return r
 
-    run(sys.executable, "scripts/compose_params.py", *FAST_PARAMS)
+    run(sys.executable, "scripts/compose_params.py", *params)
     run("git", "init", "-q", "-b", "main")
     run("git", "add", "-A")
     run("git", "commit", "-qm", "init")
     return d, run
+
+
+@pytest.fixture(scope="module")
+def repo(tmp_path_factory):
+    return make_repo(tmp_path_factory, FAST_PARAMS)
 
 
 def test_repro_builds_capture_then_does_nothing(repo):
@@ -107,3 +115,32 @@ def test_exp_run_set_param_changes_the_result(repo):
     t = json.loads((d / "out" / "kitchen_tiny" / "capture" / "transforms.json").read_text())
     assert len(t["test_filenames"]) == 2
     assert "test_every: 6" in (d / "params.yaml").read_text()
+
+
+def test_whole_dag_on_a_distorted_nerfstudio_capture(tmp_path_factory, exact_capture):
+    """A user's capture as ns-process-data writes it (OPENCV distortion, JPEG, no splits, RGB
+    only) and a scene file of two lines: every stage runs, the capture is undistorted, and the
+    stages that need what the capture lacks record why they skip."""
+    from helpers import write_ns_capture
+
+    def prepare(d):
+        write_ns_capture(exact_capture[0], d / "data" / "ns_distorted")
+        (d / "conf" / "scene" / "ns_distorted.yaml").write_text("source: dir\ndir: {path: data/ns_distorted}\n")
+
+    params = [p for p in FAST_PARAMS if not p.startswith(("scenes=", "geometry_variants="))]
+    d, run = make_repo(tmp_path_factory, params + ["scenes=[ns_distorted]", "geometry_variants=[]"], prepare)
+    run("dvc", "repro")
+    out = d / "out" / "ns_distorted"
+    for sub in ("capture/transforms.json", "sdf/field.pt", "mesh/mesh.ply", "decompose/segments.json",
+                "articulate/parts.json", "evaluate/metrics.json", "appearance/movable_gs_ste/model/gaussians.ply",
+                "appearance/textured_mesh/metrics.json"):
+        assert (out / sub).exists(), sub
+    man = json.loads((out / "capture" / "manifest.json").read_text())
+    assert man["details"]["intrinsics"]["undistorted"] and man["has"]["depth"] is False
+    assert json.loads((out / "capture" / "transforms.json").read_text())["camera_model"] == "PINHOLE"
+    sdf = json.loads((out / "sdf" / "metrics.json").read_text())
+    assert "depth_loss" in sdf["skipped"] and "geometry_curve_metrics" in sdf["skipped"]
+    assert json.loads((out / "decompose" / "metrics.json").read_text())["source"] == "geometric"
+    ev = json.loads((out / "evaluate" / "metrics.json").read_text())
+    assert "precision" not in ev and "articulation" in ev["skipped"]
+    assert "Data and pipelines are up to date." in run("dvc", "repro").stdout

@@ -8,11 +8,7 @@ import numpy as np
 from drawer_lib.capture.config import CaptureConfig, SceneConfig
 from drawer_lib.capture.dirsource import import_dir_capture
 from drawer_lib.io.manifest import Manifest, write_manifest
-
-# Every capture folder has these sub-folders (possibly empty: manifest.json says what exists),
-# so the DVC stage can declare each one as its own output and later stages depend only on the
-# modalities they read.
-CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
+from drawer_lib.paths import CAPTURE_DIRS, capture_name
 
 
 def build_capture(scene: str, cfg: SceneConfig, cap: CaptureConfig, out: Path, rng: np.random.Generator,
@@ -22,8 +18,10 @@ def build_capture(scene: str, cfg: SceneConfig, cap: CaptureConfig, out: Path, r
     ``root`` is the project root that input paths of ``video`` / ``dir`` scenes are relative to.
     Raises CaptureError / ConfigError (naming the file, frame or key) on bad input.
     """
+    # every capture folder has all sub-folders (possibly empty: manifest.json says what exists),
+    # so the DVC stage declares each as its own output and later stages depend only on what they read
     for d in CAPTURE_DIRS:
-        (out / d).mkdir(parents=True, exist_ok=True)
+        (out / capture_name(d)).mkdir(parents=True, exist_ok=True)
     test_every = cap.split.test_every
     if cfg.source == "synth":
         from drawer_lib.synth.capture import Sensors, render_synth_capture
@@ -37,5 +35,5 @@ def build_capture(scene: str, cfg: SceneConfig, cap: CaptureConfig, out: Path, r
         manifest, metrics = import_video_capture(scene, cfg.video, cap.video, test_every, out, root, seed, progress)
     else:
         manifest, metrics = import_dir_capture(scene, cfg.dir, test_every, out, root, progress)
-    write_manifest(out / "manifest.json", manifest)
+    write_manifest(out / capture_name("manifest"), manifest)
     return manifest, metrics

@@ -31,6 +31,15 @@ class DirSource:
 
 @dataclass(frozen=True)
 class SceneConfig:
+    """A scene file ``conf/scene/<name>.yaml``: the ``source`` and its block; a file writes only
+    what differs from these defaults (a misspelt key is an error naming it). A ``synth`` scene
+    without a ``synth`` block is the default procedural kitchen (:class:`SynthConfig`); ``video``
+    and ``dir`` scenes need at least their ``path``::
+
+        source: dir
+        dir: {path: data/my_capture}          # metric_scale / gravity default to false
+    """
+
     source: str = "synth"
     synth: SynthConfig | None = None
     video: VideoSource | None = None
@@ -39,8 +48,11 @@ class SceneConfig:
     def __post_init__(self):
         if self.source not in SOURCES:
             raise ConfigError(f"source = {self.source!r} is not one of {SOURCES}")
+        if self.source == "synth" and self.synth is None:
+            object.__setattr__(self, "synth", SynthConfig())
         if getattr(self, self.source) is None:
-            raise ConfigError(f"source is {self.source!r} but the {self.source!r} block is null")
+            raise ConfigError(f"source is {self.source!r} but there is no {self.source!r} block "
+                              f"(e.g. {self.source}: {{path: data/...}})")
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,13 @@ import trimesh
 
 from drawer_lib.capture.config import VideoSource
 from drawer_lib.capture.dirsource import resolve_input
+from drawer_lib.errors import CaptureError
 from drawer_lib.geometry.camera import opencv_to_opengl
 from drawer_lib.io.capture import Capture, Frame, load_capture, split_every, write_transforms
-from drawer_lib.io.images import CaptureError, read_rgb, write_rgb
+from drawer_lib.io.images import read_rgb, write_rgb
 from drawer_lib.io.manifest import Manifest
+from drawer_lib.io.mesh import load_mesh
+from drawer_lib.paths import capture_name
 from drawer_lib.sfm.align import gravity_frame, pose_errors
 from drawer_lib.sfm.colmap import reconstruct
 from drawer_lib.sfm.config import VideoConfig
@@ -35,11 +38,11 @@ def reference_distance(ref: Capture) -> float:
             if (d > 0).any():
                 meds.append(float(np.median(d[d > 0])))
         return float(np.median(meds)) if meds else float("nan")
-    mesh_path = ref.root / "gt" / "mesh.ply"
+    mesh_path = ref.root / capture_name("gt_mesh")
     if mesh_path.is_file():
         from drawer_lib.geometry.raycast import Raycaster
 
-        m = trimesh.load(mesh_path, process=False)
+        m = load_mesh(mesh_path)
         rc = Raycaster(np.asarray(m.vertices), np.asarray(m.faces))
         meds = []
         for f in ref.frames:
@@ -110,16 +113,16 @@ def import_video_capture(scene: str, src: VideoSource, cfg: VideoConfig, test_ev
         c2w_w = sim.apply_c2w(c2w)
         out_frames = []
         for n, T in zip(reg, c2w_w):
-            write_rgb(out / "images" / n, read_rgb(res.image_dir / n))
-            out_frames.append(Frame(f"images/{n}", opencv_to_opengl(T)))
+            out_frames.append(Frame(f"{capture_name('images')}/{n}", opencv_to_opengl(T)))
+            write_rgb(out / out_frames[-1].file_path, read_rgb(res.image_dir / n))
         pts = sim.apply(res.points) if len(res.points) else res.points
-        trimesh.PointCloud(pts, colors=res.colors).export(out / "sparse" / "points3d.ply")
+        trimesh.PointCloud(pts, colors=res.colors).export(out / capture_name("sparse_points"))
 
     train, test = split_every(len(out_frames), test_every)
     if not train or not test:
         raise CaptureError(f"{path}: {len(out_frames)} registered frames are too few for a train/test split")
     cap = Capture(out, res.intrinsics, out_frames, train, test,
-                  extra={"scene": scene, "source": "video", "ply_file_path": "sparse/points3d.ply"})
+                  extra={"scene": scene, "source": "video", "ply_file_path": capture_name("sparse_points")})
     write_transforms(cap)
     metrics = {
         "n_frames": len(out_frames), "n_train": len(train), "n_test": len(test),

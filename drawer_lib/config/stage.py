@@ -1,20 +1,19 @@
-"""Helpers for stage entry points: the scene a stage runs on and where its outputs go.
+"""Helpers for stage entry points: the scene a stage runs on and where it reads and writes.
 
 Under DVC a stage runs as ``python -m stages.<name> -cn dvc_stage scene=<scene>``: the primary
 config is the committed ``params.yaml`` and the scene comes from ``conf/scene/<scene>.yaml``
 (a params file DVC tracks). In a Hydra multirun (``-m``) outputs go to the sweep's job
-directory, never over DVC's outputs.
+directory, never over DVC's outputs; inputs are always read from ``paths.out``.
 """
 
 from pathlib import Path
 
-from drawer_lib.capture.config import SceneConfig
-from drawer_lib.config.typed import to_typed
 from drawer_lib.errors import ConfigError
+from drawer_lib.paths import ScenePaths
 
 
-def scene_of(cfg) -> tuple[str, SceneConfig]:
-    """(scene name = the chosen conf/scene/ file, typed scene config)."""
+def scene_name(cfg) -> str:
+    """The scene of this run: the chosen ``conf/scene/<name>.yaml``."""
     from hydra.core.hydra_config import HydraConfig
 
     name = None
@@ -23,7 +22,7 @@ def scene_of(cfg) -> tuple[str, SceneConfig]:
     if not name or cfg.get("scene") is None:
         raise ConfigError("no scene selected: pass scene=<name> (a file conf/scene/<name>.yaml), "
                           f"e.g. one of {list(cfg.get('scenes', []))}")
-    return name, to_typed(SceneConfig, cfg.scene, f"conf/scene/{name}.yaml:")
+    return name
 
 
 def out_root(cfg) -> Path:
@@ -38,18 +37,10 @@ def out_root(cfg) -> Path:
     return Path(cfg.paths.out)
 
 
-def stage_dir(cfg, scene: str, stage: str) -> Path:
-    """``<out>/<scene>/<stage>`` (DESIGN §6)."""
-    return out_root(cfg) / scene / stage
-
-
-def geometry_dir(cfg, scene: str, stage: str, output: bool = True) -> Path:
-    """Like :func:`stage_dir`, but a geometry comparison run (``+geometry_variant=<v>``, the
-    ``geometry@<scene>-<v>`` stages) keeps its ``sdf``/``mesh`` under ``<out>/<scene>/geometry/<v>/``;
-    the capture is always the scene's. Inputs (``output=False``) are always read from
-    ``paths.out`` (in a Hydra multirun only outputs go to the job's directory)."""
-    root = out_root(cfg) if output else Path(cfg.paths.out)
+def scene_paths(cfg, scene: str) -> tuple[ScenePaths, ScenePaths]:
+    """(where this run reads ``scene``'s inputs, where it writes its outputs). A geometry
+    comparison run (``+geometry_variant=<v>``, the ``geometry@<scene>-<v>`` stages) reads and
+    writes ``sdf``/``mesh`` under ``<scene>/geometry/<v>/`` (:class:`~drawer_lib.paths.ScenePaths`)."""
     variant = cfg.get("geometry_variant")
-    if variant is None or stage == "capture":
-        return root / scene / stage
-    return root / scene / "geometry" / str(variant) / stage
+    variant = None if variant is None else str(variant)
+    return ScenePaths(Path(cfg.paths.out), scene, variant), ScenePaths(out_root(cfg), scene, variant)

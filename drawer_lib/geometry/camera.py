@@ -118,11 +118,72 @@ class Intrinsics:
             int(round(self.width * s)), int(round(self.height * s)), self.dist,
         )
 
+    @property
+    def params(self) -> tuple[float, float, float, float]:
+        """(fx, fy, cx, cy)."""
+        return self.fx, self.fy, self.cx, self.cy
+
     @staticmethod
     def from_fovy(fovy_rad: float, width: int, height: int) -> "Intrinsics":
         """Square pixels, centred principal point, vertical field of view ``fovy_rad``."""
         f = 0.5 * height / np.tan(0.5 * fovy_rad)
         return Intrinsics(float(f), float(f), width / 2.0, height / 2.0, width, height)
+
+
+def pixel_dirs(intr: Intrinsics, ii: np.ndarray | None = None, jj: np.ndarray | None = None,
+               normalize: bool = False) -> np.ndarray:
+    """Camera-frame directions through pixel centres (row i, column j at (j + 0.5, i + 0.5)):
+    (x, y, 1), so the ray parameter of a point is its z-depth, or unit length with
+    ``normalize``. All pixels [H, W, 3] by default, else those at rows ``ii`` and columns
+    ``jj`` [N] -> [N, 3].
+
+    >>> d = pixel_dirs(Intrinsics(10.0, 10.0, 2.0, 1.5, 4, 3))
+    >>> d.shape, d[1, 1].tolist()
+    ((3, 4, 3), [-0.05, 0.0, 1.0])
+    """
+    if ii is None or jj is None:
+        jj, ii = np.meshgrid(np.arange(intr.width), np.arange(intr.height))
+    d = np.stack([(np.asarray(jj) + 0.5 - intr.cx) / intr.fx, (np.asarray(ii) + 0.5 - intr.cy) / intr.fy,
+                  np.ones(np.shape(ii))], -1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True) if normalize else d
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A posed pinhole camera: intrinsics and the OpenCV world-to-camera ``w2c`` [4, 4]. The one
+    camera type of the library (splatting, ray casting, metrics, articulation)."""
+
+    intrinsics: Intrinsics
+    w2c: np.ndarray  # [4, 4] float64, OpenCV world-to-camera
+
+    @property
+    def width(self) -> int:
+        return self.intrinsics.width
+
+    @property
+    def height(self) -> int:
+        return self.intrinsics.height
+
+    @property
+    def c2w(self) -> np.ndarray:
+        """[4, 4] OpenCV camera-to-world."""
+        return invert_rigid(np.asarray(self.w2c, np.float64))
+
+    @property
+    def center(self) -> np.ndarray:
+        """[3] camera centre in the world."""
+        return self.c2w[:3, 3]
+
+    def project(self, points: Float[np.ndarray, "N 3"]) -> tuple[Float[np.ndarray, "N 2"], Float[np.ndarray, "N"]]:
+        """(continuous pixel coordinates [N, 2], z-depth [N]); see :func:`project_points`."""
+        return project_points(points, self.w2c, self.intrinsics)
+
+    def rays(self, ii: np.ndarray | None = None, jj: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """World ray origins and directions (camera-frame z = 1, so the ray parameter is the
+        z-depth) through every pixel [H, W, 3] or through pixels (``ii``, ``jj``) [N, 3]."""
+        c2w = self.c2w
+        d = pixel_dirs(self.intrinsics, ii, jj) @ c2w[:3, :3].T
+        return np.broadcast_to(c2w[:3, 3], d.shape), d
 
 
 def project_points(
@@ -138,3 +199,16 @@ def project_points(
     zs = np.where(np.abs(z) < 1e-12, 1e-12, z)
     uv = np.stack([intr.fx * pc[:, 0] / zs + intr.cx, intr.fy * pc[:, 1] / zs + intr.cy], axis=-1)
     return uv, z
+
+
+def pixel_of(points: Float[np.ndarray, "N 3"], w2c: Float[np.ndarray, "4 4"], intr: Intrinsics, near: float = 1e-9
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pixel each point falls in: (rows [N], cols [N], z-depth [N], inside [N]) where
+    ``inside`` = in front of the camera (z > ``near``) and within the image; rows and cols of
+    the other points are 0, so they can index an image safely."""
+    uv, z = project_points(points, w2c, intr)
+    ok = z > near
+    uv = np.where(ok[:, None], uv, -1.0)
+    j, i = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
+    ok &= (j >= 0) & (j < intr.width) & (i >= 0) & (i < intr.height)
+    return np.where(ok, i, 0), np.where(ok, j, 0), z, ok

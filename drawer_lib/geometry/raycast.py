@@ -6,19 +6,7 @@ Pixel centres follow the library convention (centre of pixel (i, j) at (j + 0.5,
 import numpy as np
 from jaxtyping import Float, Int
 
-from drawer_lib.geometry.camera import Intrinsics, invert_rigid
-
-
-def pixel_rays(intr: Intrinsics, w2c: Float[np.ndarray, "4 4"]) -> tuple[np.ndarray, np.ndarray]:
-    """World ray origins [H, W, 3] and directions [H, W, 3] whose camera-frame z is 1, so the
-    hit parameter t of a ray is the z-depth."""
-    H, W = intr.height, intr.width
-    j, i = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
-    d_cam = np.stack([(j - intr.cx) / intr.fx, (i - intr.cy) / intr.fy, np.ones_like(j)], -1)
-    c2w = invert_rigid(w2c)
-    d = d_cam @ c2w[:3, :3].T
-    o = np.broadcast_to(c2w[:3, 3], d.shape)
-    return o, d
+from drawer_lib.geometry.camera import Camera, Intrinsics
 
 
 class Raycaster:
@@ -48,7 +36,7 @@ class Raycaster:
     def depth_normals(self, intr: Intrinsics, w2c: Float[np.ndarray, "4 4"]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """z-depth [H, W] (0 on a miss), camera-facing unit normals in the OpenCV camera frame
         [H, W, 3] (0 on a miss) and face ids [H, W] (-1 on a miss)."""
-        o, d = pixel_rays(intr, w2c)
+        o, d = Camera(intr, w2c).rays()
         t, n_world, fid = self.cast(o, d)
         hit = fid >= 0
         z = np.where(hit, t, 0.0).astype(np.float32)

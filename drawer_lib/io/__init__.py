@@ -1,7 +1,8 @@
 """Files between stages: captures (DESIGN §4), the scene manifest, parts files (DESIGN §5)."""
 
+from drawer_lib.errors import CaptureError
 from drawer_lib.io.capture import Capture, Frame, load_capture, split_every, write_transforms
-from drawer_lib.io.images import CaptureError, read_json, write_json
+from drawer_lib.io.images import read_json, write_json
 from drawer_lib.io.manifest import Manifest, read_manifest, write_manifest
 from drawer_lib.io.parts import Axis, Front, IgnoreBox, Part, PartsFile, read_parts, write_parts
 

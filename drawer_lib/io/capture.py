@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from drawer_lib.geometry.camera import Intrinsics, check_rigid, invert_rigid, opengl_to_opencv
+from drawer_lib.errors import CaptureError
+from drawer_lib.geometry.camera import Camera, Intrinsics, check_rigid, invert_rigid, opengl_to_opencv
 from drawer_lib.io.images import (
-    CaptureError,
     image_size,
     read_depth,
     read_json,
@@ -22,9 +22,11 @@ from drawer_lib.io.images import (
     read_u16,
     write_json,
 )
+from drawer_lib.paths import capture_name
 
 CAMERA_MODELS = ("PINHOLE", "OPENCV")
 FRAME_FILE_KEYS = ("depth_file_path", "mono_depth_file_path", "mono_normal_file_path", "detections_path")
+PER_FRAME_CAMERA_KEYS = ("camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "k3", "k4", "p1", "p2")
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,13 @@ class Capture:
         """True when every frame has ``key`` (one of FRAME_FILE_KEYS)."""
         return len(self.frames) > 0 and all(getattr(f, key) is not None for f in self.frames)
 
+    def camera(self, i: int) -> Camera:
+        """The posed camera of frame ``i``."""
+        return Camera(self.intrinsics, self.frames[i].w2c)
+
+    def cameras(self, frames: list[int]) -> list[Camera]:
+        return [self.camera(i) for i in frames]
+
     def w2c_all(self) -> np.ndarray:
         """[C, 4, 4] OpenCV world-to-camera of all frames."""
         return np.stack([f.w2c for f in self.frames])
@@ -130,7 +139,7 @@ class Capture:
 
 
 def write_transforms(capture: Capture) -> None:
-    write_json(capture.root / "transforms.json", capture.to_json())
+    write_json(capture.root / capture_name("transforms"), capture.to_json())
 
 
 def _num(d: dict, key: str, src: str, positive: bool = False) -> float:
@@ -166,7 +175,7 @@ def load_capture(root: Path, check_files: bool = True, default_test_every: int |
     Raises CaptureError naming the file or frame at fault.
     """
     root = Path(root)
-    tf = root / "transforms.json"
+    tf = root / capture_name("transforms")
     d = read_json(tf)
     src = str(tf)
     if not isinstance(d, dict):
@@ -179,9 +188,12 @@ def load_capture(root: Path, check_files: bool = True, default_test_every: int |
     w, h = _num(d, "w", src, True), _num(d, "h", src, True)
     if w != int(w) or h != int(h):
         raise CaptureError(f"{src}: image size w={w}, h={h} is not integral")
-    dist = tuple(float(d.get(k, 0.0)) for k in ("k1", "k2", "p1", "p2"))
-    if not all(math.isfinite(x) for x in dist):
-        raise CaptureError(f"{src}: non-finite distortion {dist}")
+    dist = tuple(_num(d, k, src) if k in d else 0.0 for k in ("k1", "k2", "p1", "p2"))
+    for k in ("k3", "k4", "k5", "k6"):
+        if k in d and _num(d, k, src) != 0.0:
+            raise CaptureError(f"{src}: {k} = {d[k]}: only the OPENCV model (k1, k2, p1, p2) is supported")
+    if model == "PINHOLE" and any(dist):
+        raise CaptureError(f"{src}: camera_model PINHOLE with distortion {dist}; use OPENCV")
     intr = Intrinsics(fx, fy, cx, cy, int(w), int(h), dist)  # type: ignore[arg-type]
     scale = _num(d, "depth_unit_scale_factor", src, True) if "depth_unit_scale_factor" in d else 0.001
 
@@ -203,6 +215,10 @@ def load_capture(root: Path, check_files: bool = True, default_test_every: int |
         why = check_rigid(T)
         if why:
             raise CaptureError(f"{src}: frame {fp}: transform_matrix {why}")
+        top = {"camera_model": model, **{k: d.get(k, 0.0) for k in ("k1", "k2", "k3", "k4", "p1", "p2")}}
+        own = {k: fr[k] for k in PER_FRAME_CAMERA_KEYS if k in fr and fr[k] != top.get(k, d.get(k))}
+        if own:
+            raise CaptureError(f"{src}: frame {fp} has its own camera {own}; one camera for all frames is supported")
         frames.append(Frame(fp, T, *(fr.get(key) for key in FRAME_FILE_KEYS)))
 
     extra = {k: v for k, v in d.items() if k not in (

@@ -5,16 +5,13 @@ wrong kind, so that callers never see a half-decoded array.
 """
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from drawer_lib.errors import InputError
-
-
-class CaptureError(InputError):
-    """Bad capture input. The message names the offending file, frame or value."""
+from drawer_lib.errors import CaptureError
 
 
 def _open(path: Path) -> Image.Image:
@@ -110,6 +107,31 @@ def read_json(path: Path):
         raise CaptureError(f"{path}: not valid JSON ({e})") from e
 
 
+# Every float written to JSON is rounded to this many decimal places (1e-10: far below any
+# precision a capture, a mesh or a metric has). Float64 results can differ in their last bits
+# between machines and thread counts (SIMD paths, summation order); rounded, the files are
+# byte-identical, so DVC's hashes and a shared cache mean what they should.
+FLOAT_DECIMALS = 10
+
+
+def round_floats(obj, decimals: int = FLOAT_DECIMALS):
+    """``obj`` with every float rounded to ``decimals`` places (-0.0 written as 0.0); tuples
+    become lists, dicts and lists are copied; NaN and inf are left for the writer to refuse.
+
+    >>> round_floats({"a": [0.1 + 0.2, -1e-17], "b": (1, 2.5)})
+    {'a': [0.3, 0.0], 'b': [1, 2.5]}
+    """
+    if isinstance(obj, float):
+        return round(obj, decimals) + 0.0 if math.isfinite(obj) else obj
+    if isinstance(obj, dict):
+        return {k: round_floats(v, decimals) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [round_floats(v, decimals) for v in obj]
+    return obj
+
+
 def write_json(path: Path, obj, indent: int | None = 2) -> None:
-    """Write JSON (no NaN/inf allowed: they are not JSON and must not travel downstream)."""
-    Path(path).write_text(json.dumps(obj, indent=indent, allow_nan=False) + "\n")
+    """Write JSON with floats rounded to :data:`FLOAT_DECIMALS` places (so the same values give
+    the same bytes on every machine). NaN and inf are refused: they are not JSON and must not
+    travel downstream."""
+    Path(path).write_text(json.dumps(round_floats(obj), indent=indent, allow_nan=False) + "\n")

@@ -13,7 +13,8 @@ Requirements a stage can ask for:
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from drawer_lib.io.images import CaptureError, read_json, write_json
+from drawer_lib.errors import CaptureError
+from drawer_lib.io.images import read_json, write_json
 
 SCHEMA = "drawer.manifest/1"
 MODALITIES = ("rgb", "depth", "mono_depth", "mono_normal", "detections", "sparse_points", "gt")

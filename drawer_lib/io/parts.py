@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drawer_lib.io.images import CaptureError, read_json, write_json
+from drawer_lib.errors import CaptureError
+from drawer_lib.io.images import read_json, write_json
 
 SCHEMA = "drawer.parts/1"
 KINDS = ("revolute", "prismatic", "rigid")

@@ -13,6 +13,7 @@ import torch.nn.functional as F
 import trimesh
 from skimage.measure import marching_cubes
 
+from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Intrinsics
 
 SdfFn = Callable[[torch.Tensor], torch.Tensor]  # [N, 3] -> [N], no gradient
@@ -128,5 +129,5 @@ def grid_field_mesh(grid, intr: Intrinsics, w2c: np.ndarray, level: float = 0.0,
     obs = grid.observed()
     mask = cube_mask(obs) & frustum_mask(grid.lo, obs.shape, grid.cell, intr, w2c, near)
     if not mask.any():
-        raise ValueError("grid_field_mesh: no observed cube lies in a train camera's view")
+        raise InputError("grid_field_mesh: no observed cube lies in a train camera's view")
     return marching_cubes_mesh(np.where(obs, grid.values, grid.unknown), grid.lo, grid.cell, level, mask)

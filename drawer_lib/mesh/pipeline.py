@@ -2,18 +2,19 @@
 clean-up, ``mesh.ply``, and the metrics against ``gt/mesh.ply`` when it exists."""
 
 import time
-from pathlib import Path
 
 import numpy as np
 import trimesh
 
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
-from drawer_lib.io.manifest import Manifest
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.mesh import load_mesh
 from drawer_lib.mesh.clean import clean_mesh
 from drawer_lib.mesh.config import MeshConfig
 from drawer_lib.mesh.extract import frustum_mask, grid_field_mesh, marching_cubes_mesh, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
+from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sdf.io import LoadedField
 
@@ -37,7 +38,10 @@ def extract_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture) -> trimesh.T
     return marching_cubes_mesh(values, lo, cell, cfg.level, mask)
 
 
-def run_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture, manifest: Manifest, run: StageRun, out: Path) -> dict:
+def run_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture, run: StageRun) -> dict:
+    """Mesh ``field`` where the train cameras saw, clean it up, write the stage's ``mesh.ply``
+    and score it against the capture's ground-truth mesh when there is one."""
+    manifest = read_manifest(cap.root / capture_name("manifest"))
     t0 = time.perf_counter()
     raw = extract_mesh(cfg, field, cap)
     t_mc = time.perf_counter() - t0
@@ -48,12 +52,12 @@ def run_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture, manifest: Manife
     if len(mesh.faces) == 0:
         raise InputError(f"mesh: clean-up removed every face (min_component_diag = {cfg.clean.min_component_diag})")
     t_clean = time.perf_counter() - t0 - t_mc
-    mesh.export(out / "mesh.ply")
+    mesh.export(run.out("mesh"))
     m = {"field": field.info.get("method", field.kind), "marching_cubes_s": round(t_mc, 3),
          "clean_s": round(t_clean, 3), **counts, "vertices": len(mesh.vertices),
          "area_m2": float(mesh.area)}
     if run.needs(manifest, "metrics_vs_gt", "gt"):
-        gt = trimesh.load(cap.root / "gt" / "mesh.ply", process=False)
+        gt = load_mesh(cap.root / capture_name("gt_mesh"))
         w2c = np.stack([cap.frames[i].w2c for i in cap.train])
         ev = MeshEvaluator(gt, cap.intrinsics, w2c, n_points=cfg.eval_points, seed=run.seed)
         r = ev(mesh)

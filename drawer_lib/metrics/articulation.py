@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from jaxtyping import Float
 
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.parts import Front, Part, PartsFile
 
 IOU_MIN = 0.5
@@ -120,10 +121,10 @@ def axis_segment(part: Part) -> np.ndarray:
     return np.stack([o + t.min() * d, o + t.max() * d])
 
 
-def project_segment(seg: np.ndarray, w2c: np.ndarray, K: tuple[float, float, float, float], W: int, H: int,
-                    near: float = 1e-3) -> np.ndarray | None:
-    """[2, 2] the segment projected (OpenCV camera), clipped to z > near and to the image, in
+def project_segment(seg: np.ndarray, cam: Camera, near: float = 1e-3) -> np.ndarray | None:
+    """[2, 2] the segment [2, 3] seen by ``cam``, clipped to z > near and to the image, in
     normalised [0, 1]^2 coordinates; None when nothing of it is visible."""
+    w2c, W, H = cam.w2c, cam.width, cam.height
     pc = seg @ w2c[:3, :3].T + w2c[:3, 3]
     a, b = pc[0], pc[1]
     if a[2] <= near and b[2] <= near:
@@ -132,7 +133,7 @@ def project_segment(seg: np.ndarray, w2c: np.ndarray, K: tuple[float, float, flo
         t = (near - a[2]) / (b[2] - a[2])
         m = a + t * (b - a)
         a, b = (m, b) if a[2] <= near else (a, m)
-    fx, fy, cx, cy = K
+    fx, fy, cx, cy = cam.intrinsics.params
     pa = np.array([fx * a[0] / a[2] + cx, fy * a[1] / a[2] + cy]) / (W, H)
     pb = np.array([fx * b[0] / b[2] + cx, fy * b[1] / b[2] + cy]) / (W, H)
     # Liang–Barsky against [0, 1]^2
@@ -163,19 +164,19 @@ def ea_pair(pred2d: np.ndarray, gt2d: np.ndarray) -> float:
     return (s_t * s_d) ** 2
 
 
-def ea_score(pred: Part, gt: Part, views: list[tuple[np.ndarray, tuple, int, int]]) -> float | None:
-    """Mean EA over ``views`` [(w2c, (fx, fy, cx, cy), W, H)] where both axes are visible; None
-    when there is no such view."""
+def ea_score(pred: Part, gt: Part, views: list[Camera]) -> float | None:
+    """Mean EA over the cameras ``views`` where both axes are visible; None when there is no
+    such view."""
     sp, sg = axis_segment(pred), axis_segment(gt)
     vals = []
-    for w2c, K, W, H in views:
-        a, b = project_segment(sp, w2c, K, W, H), project_segment(sg, w2c, K, W, H)
+    for cam in views:
+        a, b = project_segment(sp, cam), project_segment(sg, cam)
         if a is not None and b is not None and np.linalg.norm(a[1] - a[0]) > 1e-6 and np.linalg.norm(b[1] - b[0]) > 1e-6:
             vals.append(ea_pair(a, b))
     return float(np.mean(vals)) if vals else None
 
 
-def articulation_metrics(pred: PartsFile, gt: PartsFile, views: list) -> tuple[dict, list[dict]]:
+def articulation_metrics(pred: PartsFile, gt: PartsFile, views: list[Camera]) -> tuple[dict, list[dict]]:
     """(flat metrics, per-GT-part details). Metrics: ``precision``, ``recall``, ``ea_score``
     (absent with no correct revolute part visible in a view), counts."""
     m = match_parts(pred, gt)

@@ -23,8 +23,10 @@ import numpy as np
 import trimesh
 from jaxtyping import Float
 
-from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Intrinsics, pixel_of
 from drawer_lib.geometry.raycast import Raycaster
+from drawer_lib.geometry.sampling import sample_triangles
 
 THRESHOLDS = {"fscore_1cm": 0.01, "fscore_2cm": 0.02}
 
@@ -38,19 +40,11 @@ class SurfaceSamples:
 def sample_surface(mesh: trimesh.Trimesh, n: int, seed: int = 0) -> SurfaceSamples:
     """``n`` area-uniform samples with their face normals (zero-area faces are never drawn)."""
     if len(mesh.faces) == 0:
-        raise ValueError("sample_surface: mesh has no faces")
-    tri = mesh.triangles
+        raise InputError("sample_surface: mesh has no faces")
+    tri = np.asarray(mesh.triangles, np.float64)
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = 0.5 * np.linalg.norm(cross, axis=1)
-    total = area.sum()
-    if not np.isfinite(total) or total <= 0:
-        raise ValueError("sample_surface: mesh has zero area")
-    rng = np.random.default_rng(seed)
-    f = rng.choice(len(area), size=n, p=area / total)
-    u, v = rng.random(n), rng.random(n)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    p = tri[f, 0] + u[:, None] * (tri[f, 1] - tri[f, 0]) + v[:, None] * (tri[f, 2] - tri[f, 0])
+    p, f = sample_triangles(tri, n, np.random.default_rng(seed), areas=area)
     nrm = cross[f] / np.maximum(2 * area[f], 1e-300)[:, None]
     return SurfaceSamples(p, nrm)
 
@@ -88,14 +82,7 @@ class Views:
 
     def project(self, k: int, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(in-image mask [N], observed GT depth at the pixel [N], point depth [N]) for view k."""
-        pc = X @ self.w2c[k, :3, :3].T + self.w2c[k, :3, 3]
-        z = pc[:, 2]
-        zs = np.where(z > 1e-9, z, 1.0)
-        u = self.intr.fx * pc[:, 0] / zs + self.intr.cx
-        v = self.intr.fy * pc[:, 1] / zs + self.intr.cy
-        j, i = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
-        H, W = self.depth.shape[1:]
-        inside = (z > 1e-9) & (j >= 0) & (j < W) & (i >= 0) & (i < H)
+        i, j, z, inside = pixel_of(X, self.w2c[k], self.intr)
         obs = np.zeros(len(X))
         obs[inside] = self.depth[k, i[inside], j[inside]]
         return inside & (obs > 0), obs, z
@@ -142,18 +129,18 @@ class MeshEvaluator:
         s = sample_surface(gt_mesh, n_points, seed)
         m = seen_mask(self.views, s.points, s.normals, vis_tol)
         if not m.any():
-            raise ValueError("MeshEvaluator: no GT surface is seen by the train views")
+            raise InputError("MeshEvaluator: no GT surface is seen by the train views")
         self.gt = SurfaceSamples(s.points[m], s.normals[m])
         self.to_gt = SurfaceDistance(gt_mesh)
 
     def __call__(self, pred: trimesh.Trimesh) -> dict[str, float]:
         """Chamfer-L1, F-scores at 1 and 2 cm, precision/recall, normal consistency."""
         if len(pred.faces) == 0:
-            raise ValueError("MeshEvaluator: predicted mesh is empty")
+            raise InputError("MeshEvaluator: predicted mesh is empty")
         s = sample_surface(pred, self.n_points, self.seed + 1)
         m = not_hidden_mask(self.views, s.points, self.hidden_tol)
         if not m.any():
-            raise ValueError("MeshEvaluator: no predicted surface lies where the train views look")
+            raise InputError("MeshEvaluator: no predicted surface lies where the train views look")
         p_pts, p_nrm = s.points[m], s.normals[m]
         d_p, n_gt_at_p = self.to_gt(p_pts)
         d_g, n_p_at_g = SurfaceDistance(pred)(self.gt.points)

@@ -5,7 +5,7 @@
 2. Graph: mesh-adjacent faces, weight = number of masks that hold both. A false mask, a merge or
    a ragged border happens in a frame or two; a front is seen whole in many, so edges seen in
    fewer than ``min_cooccur`` masks are dropped, and so are sharp creases.
-3. Louvain communities (networkx, seeded) at several resolutions give overlapping candidates.
+3. Louvain communities (seeded, bounded by work) at several resolutions give overlapping candidates.
 4. Each candidate is rendered back into every frame that sees it and compared with that frame's
    masks: ``score`` = median over frames of the best IoU. A missed or merged detection lowers
    a frame or two, not the median.
@@ -24,6 +24,7 @@ import trimesh
 
 from drawer_lib.io.capture import Capture
 from drawer_lib.perception.config import DecomposeConfig
+from drawer_lib.perception.louvain import louvain
 from drawer_lib.perception.views import MeshViews, adjacency_edges, connected_components, largest_component
 
 HANDLE_LABELS = ("handle", "knob", "pull")
@@ -167,68 +168,25 @@ def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, ma
     return edges[keep], rate[keep]
 
 
-class _LouvainTimeout(Exception):
-    pass
-
-
-def louvain_bounded(G, resolution: float, seed: int, timeout_s: float, tries: int = 4) -> tuple[list[set] | None, int]:
-    """``networkx.community.louvain_communities`` with a wall-clock bound: in networkx <= 3.6.1
-    its local-moving loop can cycle forever on floating-point ties (networkx issue #8739, fixed
-    upstream after 3.6.1), depending on the seed. A run longer than ``timeout_s`` is interrupted
-    (SIGALRM: the networkx loop is pure Python) and retried with the next seed, up to ``tries``
-    seeds. Returns (communities or None when every try timed out, tries used). Off the main
-    thread, or with ``timeout_s`` <= 0, it runs unbounded."""
-    import signal
-    import threading
-
-    import networkx as nx
-
-    run = lambda sd: nx.community.louvain_communities(G, weight="weight", resolution=resolution, seed=sd)  # noqa: E731
-    if timeout_s <= 0 or threading.current_thread() is not threading.main_thread() or not hasattr(signal, "SIGALRM"):
-        return run(seed), 1
-
-    def _raise(signum, frame):
-        raise _LouvainTimeout
-
-    def attempt(sd: int):
-        try:
-            signal.setitimer(signal.ITIMER_REAL, timeout_s)
-            return run(sd)
-        finally:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-
-    old = signal.signal(signal.SIGALRM, _raise)
-    try:
-        for k in range(tries):
-            try:  # an alarm anywhere in the attempt, even in its clean-up, counts as a timeout
-                return attempt(seed + k), k + 1
-            except _LouvainTimeout:
-                continue
-        return None, tries
-    finally:
-        signal.signal(signal.SIGALRM, old)
-
-
 def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, resolutions, min_faces: int,
-                       seed: int, timeout_s: float = 60.0, report: dict | None = None,
+                       seed: int, max_sweeps: int = 64, report: dict | None = None,
                        component_rates=()) -> list[np.ndarray]:
     """Communities (face-id arrays, each its largest connected component) over all resolutions,
-    exact duplicates removed. Each Louvain run is bounded (:func:`louvain_bounded`); ``report``
-    (if given) receives ``louvain_retries`` and the ``louvain_skipped`` resolutions.
+    exact duplicates removed. Each Louvain run is bounded by work
+    (:func:`~drawer_lib.perception.louvain.louvain`, at most ``max_sweeps`` sweeps per level);
+    ``report`` (if given) receives ``louvain_capped``: the levels that hit that bound.
 
     ``component_rates``: also the connected components of the graph cut to the edges of weight
     >= each rate. On a mesh graph modularity splits a large uniform front (a tall door of 1.3k
     faces) at every resolution that keeps it apart from its neighbours, since a cut across it
     is cheap against the product of its halves' degrees; a weight threshold keeps it whole
     when the masks hold its inside together more often than its border."""
-    import networkx as nx
-
     out, seen = [], set()
 
     def add(f: np.ndarray) -> None:
         if len(f) < min_faces:
             return
-        key = hash(np.sort(f).tobytes())
+        key = np.sort(f).tobytes()
         if key not in seen:
             seen.add(key)
             out.append(np.sort(f))
@@ -241,20 +199,17 @@ def louvain_candidates(n_faces: int, edges: np.ndarray, weights: np.ndarray, res
         ids, cnt = np.unique(lab[deg > 0], return_counts=True)
         for c in ids[cnt >= min_faces]:
             add(np.nonzero((lab == c) & (deg > 0))[0])
-    G = nx.Graph()
-    G.add_weighted_edges_from(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), weights.tolist()))
-    retries, skipped = 0, []
+    capped = 0
     for r in resolutions:
-        coms, used = louvain_bounded(G, float(r), seed, timeout_s)
-        retries += used - 1
-        if coms is None:
-            skipped.append(float(r))
-            continue
-        for com in coms:
-            if len(com) >= min_faces:
-                add(largest_component(np.fromiter(com, np.int64), n_faces, edges))
+        lab, rep = louvain(n_faces, edges, weights, float(r), seed, max_sweeps=max_sweeps)
+        capped += rep["capped"]
+        order = np.argsort(lab, kind="stable")
+        ids, starts, counts = np.unique(lab[order], return_index=True, return_counts=True)
+        for s0, cnt in zip(starts, counts):
+            if cnt >= min_faces:
+                add(largest_component(order[s0:s0 + cnt], n_faces, edges))
     if report is not None:
-        report.update(louvain_retries=retries, louvain_skipped=skipped)
+        report.update(louvain_capped=capped)
     return out
 
 
@@ -418,7 +373,7 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
     ge, gw = cooccurrence_graph(views.n_faces, edges, dih, masks, visible, cfg.min_cooccur, cfg.min_rate,
                                 cfg.max_dihedral, cfg.separation)
     lv: dict = {}
-    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, cfg.louvain_timeout_s, lv,
+    cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, cfg.louvain_max_sweeps, lv,
                                cfg.component_rates)
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
     scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress)

@@ -17,11 +17,12 @@ images show them. The benchmark reports how it compares.
 
 import numpy as np
 
+from drawer_lib.geometry.camera import pixel_of
+from drawer_lib.geometry.frames import UP, plane_axes
 from drawer_lib.io.capture import Capture
 from drawer_lib.perception.config import DecomposeConfig, GeometricConfig
 from drawer_lib.perception.decompose import Segment, face_geometry
-from drawer_lib.geometry.camera import project_points
-from drawer_lib.perception.views import UP, MeshViews, adjacency_edges, connected_components, plane_axes
+from drawer_lib.perception.views import MeshViews, adjacency_edges, connected_components
 
 
 def vertical_regions(views: MeshViews, g: GeometricConfig) -> list[np.ndarray]:
@@ -69,11 +70,7 @@ def _facade(views: MeshViews, cap: Capture, images: list[np.ndarray], faces: np.
     cols = []
     flat = P.reshape(-1, 3)
     for t, i in enumerate(views.frames):
-        uv, z = project_points(flat, cap.frames[i].w2c, it)
-        ok = z > 1e-3
-        uv = np.where(ok[:, None], uv, -1.0)
-        xi, yi = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
-        ok &= (xi >= 0) & (xi < it.width) & (yi >= 0) & (yi < it.height)
+        yi, xi, z, ok = pixel_of(flat, cap.frames[i].w2c, it, near=1e-3)
         d = np.zeros(len(flat))
         d[ok] = views.depth_maps[t][yi[ok], xi[ok]]
         ok &= np.abs(d - z) < 0.02  # visible: the mesh's first hit is this point

@@ -1,10 +1,8 @@
-"""What the ``decompose``, ``articulate`` and ``evaluate`` stages do.
+"""What the ``decompose`` stage does, and the reader of its outputs.
 
 decompose: capture + mesh -> ``segments.json``, ``face_labels.npz`` (per face of
 ``perception_mesh.ply``: segment id or -1, the number of views whose "handle" masks cover it and
 the number of train views that see it), ``perception_mesh.ply``.
-articulate: those + capture -> ``parts.json`` (DESIGN §5) + ``decisions.json`` (why each segment
-got its type). evaluate: ``parts.json`` vs ``gt/parts.json`` -> precision, recall, EA-score.
 """
 
 import time
@@ -16,10 +14,10 @@ import trimesh
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import read_json, write_json
-from drawer_lib.io.manifest import Manifest
-from drawer_lib.io.parts import PartsFile, read_parts, write_parts
-from drawer_lib.perception.articulate import get_estimator, infer_parts
-from drawer_lib.perception.config import ArticulateConfig, DecomposeConfig
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.mesh import load_mesh
+from drawer_lib.paths import capture_name, stage_name
+from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.perception.decompose import Segment, decompose_from_detections, face_labels
 from drawer_lib.perception.views import perception_mesh, render_views
 from drawer_lib.runner import StageRun
@@ -27,18 +25,12 @@ from drawer_lib.runner import StageRun
 SEGMENTS_SCHEMA = "drawer.segments/1"
 
 
-def load_mesh(path: Path) -> trimesh.Trimesh:
-    if not path.is_file():
-        raise InputError(f"{path}: mesh is missing (run the mesh stage first)")
-    m = trimesh.load(path, process=False)
-    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
-        raise InputError(f"{path}: not a triangle mesh with faces")
-    return m
-
-
-def run_decompose(cfg: DecomposeConfig, cap: Capture, manifest: Manifest, mesh_path: Path, run: StageRun,
-                  out: Path) -> dict:
-    mesh = perception_mesh(load_mesh(mesh_path), cfg.max_faces, cfg.max_edge, cap, list(cap.train))
+def run_decompose(cfg: DecomposeConfig, cap: Capture, mesh_path: Path, run: StageRun) -> dict:
+    """Segment the mesh at ``mesh_path`` from the capture's detections (or, without them, by the
+    geometric fallback) and write the decompose outputs."""
+    manifest = read_manifest(cap.root / capture_name("manifest"))
+    mesh = perception_mesh(load_mesh(mesh_path, "run the mesh stage first"), cfg.max_faces, cfg.max_edge, cap,
+                           list(cap.train))
     has_det = cap.has("detections_path")
     source = cfg.source
     if source == "auto":
@@ -46,8 +38,8 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, manifest: Manifest, mesh_p
         if not has_det:
             run.skip("detections", manifest.lacks.get("detections", "the capture has no detections"))
     if source == "detections" and not has_det:
-        raise InputError(f"{cap.root / 'transforms.json'}: decompose.source = detections, but the capture has no "
-                         "detections (set decompose.source: auto or geometric)")
+        raise InputError(f"{cap.root / capture_name('transforms')}: decompose.source = detections, but the capture "
+                         "has no detections (set decompose.source: auto or geometric)")
     t0 = time.perf_counter()
     views = render_views(mesh, cap, list(cap.train))
     t_views = time.perf_counter() - t0
@@ -57,11 +49,11 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, manifest: Manifest, mesh_p
         from drawer_lib.perception.geometric import decompose_geometric
 
         segs, handle_hits, info = decompose_geometric(cap, views, cfg.geometric, cfg)
-    mesh.export(out / "perception_mesh.ply")
-    np.savez_compressed(out / "face_labels.npz", labels=face_labels(len(mesh.faces), segs), handle_hits=handle_hits,
+    mesh.export(run.out("mesh"))
+    np.savez_compressed(run.out("face_labels"), labels=face_labels(len(mesh.faces), segs), handle_hits=handle_hits,
                         face_views=views.face_frames())
-    write_json(out / "segments.json", {"schema": SEGMENTS_SCHEMA, "source": source, "n_faces": int(len(mesh.faces)),
-                                       "segments": [s.to_json() for s in segs]})
+    write_json(run.out("segments"), {"schema": SEGMENTS_SCHEMA, "source": source, "n_faces": int(len(mesh.faces)),
+                                     "segments": [s.to_json() for s in segs]})
     return {"source": source, "n_segments": len(segs), "n_planar": sum(s.planar for s in segs),
             "mesh_faces": int(len(mesh.faces)), "views_s": round(t_views, 3), **info}
 
@@ -69,19 +61,20 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, manifest: Manifest, mesh_p
 def load_segments(d: Path) -> tuple[trimesh.Trimesh, list[Segment], np.ndarray, np.ndarray | None]:
     """(perception mesh, segments with their faces, [F] handle-mask hits, [F] views seeing each
     face or None from an output written before that was stored) of a decompose output."""
-    for name in ("segments.json", "face_labels.npz", "perception_mesh.ply"):
-        if not (d / name).is_file():
-            raise InputError(f"{d / name}: missing (run the decompose stage first)")
-    js = read_json(d / "segments.json")
+    seg_p, lab_p, mesh_p = (d / stage_name("decompose", k) for k in ("segments", "face_labels", "mesh"))
+    for p in (seg_p, lab_p, mesh_p):
+        if not p.is_file():
+            raise InputError(f"{p}: missing (run the decompose stage first)")
+    js = read_json(seg_p)
     if js.get("schema") != SEGMENTS_SCHEMA:
-        raise InputError(f"{d / 'segments.json'}: schema {js.get('schema')!r}, expected {SEGMENTS_SCHEMA!r}")
-    mesh = trimesh.load(d / "perception_mesh.ply", process=False)
-    z = np.load(d / "face_labels.npz")
+        raise InputError(f"{seg_p}: schema {js.get('schema')!r}, expected {SEGMENTS_SCHEMA!r}")
+    mesh = load_mesh(mesh_p)
+    z = np.load(lab_p)
     labels, hits = z["labels"], z["handle_hits"]
     face_views = z["face_views"] if "face_views" in z.files else None
     for name, a in (("labels", labels), ("handle_hits", hits), ("face_views", face_views)):
         if a is not None and len(a) != len(mesh.faces):
-            raise InputError(f"{d / 'face_labels.npz'}: {len(a)} {name} for {len(mesh.faces)} faces")
+            raise InputError(f"{lab_p}: {len(a)} {name} for {len(mesh.faces)} faces")
     segs = []
     for s in js["segments"]:
         segs.append(Segment(int(s["id"]), np.nonzero(labels == int(s["id"]))[0], float(s["score"]),
@@ -89,81 +82,3 @@ def load_segments(d: Path) -> tuple[trimesh.Trimesh, list[Segment], np.ndarray, 
                             float(s["area_m2"]), np.asarray(s["centroid"]), s.get("source", "detections"),
                             matched=[(str(a), int(b)) for a, b in s.get("matched", [])]))
     return mesh, segs, hits, face_views
-
-
-def camera_centers(cap: Capture, frames: list[int]) -> np.ndarray:
-    return np.stack([cap.frames[i].c2w[:3, 3] for i in frames])
-
-
-def _mask_source(cap: Capture):
-    """segment -> [(bool mask, w2c, (fx, fy, cx, cy))] of the detections it matched."""
-    index = {cap.frames[i].stem: i for i in range(len(cap.frames))}
-    it = cap.intrinsics
-    K = (it.fx, it.fy, it.cx, it.cy)
-    cache: dict[int, np.ndarray] = {}
-
-    def masks_of(seg: Segment) -> list:
-        out = []
-        for stem, d in seg.matched:
-            i = index.get(stem)
-            if i is None:
-                raise InputError(f"segments.json: segment {seg.id} refers to frame {stem!r}, which the capture lacks")
-            if i not in cache:
-                cache[i] = cap.detections(i)[0]
-            out.append((cache[i] == d, cap.frames[i].w2c, K))
-        return out
-
-    return masks_of
-
-
-def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, out: Path) -> dict:
-    est = get_estimator(cfg.estimator)
-    mesh, segs, hits, face_views = load_segments(seg_dir)
-    if cfg.handle_evidence == "view_rate" and face_views is None:
-        raise InputError(f"{seg_dir / 'face_labels.npz'}: has no face_views, which articulate.handle_evidence = "
-                         "view_rate needs (written by an older decompose: re-run it)")
-    if est is infer_parts:
-        masks_of = _mask_source(cap) if cap.has("detections_path") else None
-        parts, report = infer_parts(mesh, segs, camera_centers(cap, list(cap.train)), cfg, hits, masks_of, face_views)
-    else:
-        parts, report = est(mesh, segs, camera_centers(cap, list(cap.train)), cfg, handle_hits=hits)
-    pf = PartsFile(tuple(parts))
-    write_parts(out / "parts.json", pf)
-    write_json(out / "decisions.json", {"estimator": cfg.estimator, "segments": report})
-    kinds = pf.kinds()
-    fam: dict[str, int] = {}
-    for p in parts:
-        f = p.extra.get("family", p.kind)
-        fam[f] = fam.get(f, 0) + 1
-    return {"estimator": cfg.estimator, "n_parts": len(parts), **{f"n_{k}": v for k, v in kinds.items()},
-            "families": fam}
-
-
-def eval_views(cap: Capture) -> list:
-    it = cap.intrinsics
-    return [(cap.frames[i].w2c, (it.fx, it.fy, it.cx, it.cy), it.width, it.height) for i in cap.test]
-
-
-def run_evaluate(cap: Capture, manifest: Manifest, parts_path: Path, run: StageRun, out: Path) -> dict:
-    from drawer_lib.metrics.articulation import articulation_metrics
-
-    if not parts_path.is_file():
-        raise InputError(f"{parts_path}: missing (run the articulate stage first)")
-    pred = read_parts(parts_path)
-    m: dict = {"n_pred": sum(p.articulated for p in pred.parts)}
-    if not run.needs(manifest, "articulation", "gt"):
-        write_json(out / "matches.json", {"parts": [], "skipped": run.skipped["articulation"]})
-        return m
-    gt = read_parts(cap.root / "gt" / "parts.json")
-    res, details = articulation_metrics(pred, gt, eval_views(cap))
-    if res["n_pred"] - res["n_ignored"] == 0:
-        run.skip("precision", "no articulated part predicted")
-        res.pop("precision")
-    if res["n_gt"] == 0:
-        run.skip("recall", "the ground truth has no articulated part")
-        res.pop("recall")
-    if "ea_score" not in res:
-        run.skip("ea_score", "no correctly predicted revolute part is visible in a test view")
-    write_json(out / "matches.json", {"parts": details})
-    m.update(res)
-    return m

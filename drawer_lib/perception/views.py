@@ -7,21 +7,9 @@ import trimesh
 from jaxtyping import Float, Int
 
 from drawer_lib.errors import InputError
-from drawer_lib.geometry.camera import project_points
+from drawer_lib.geometry.camera import pixel_of
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
-
-UP = np.array([0.0, 0.0, 1.0])  # world up (DESIGN §4: +z)
-
-
-def plane_axes(n: Float[np.ndarray, "3"]) -> tuple[np.ndarray, np.ndarray]:
-    """In-plane unit axes (u, v) of a plane with unit normal ``n``: u horizontal (UP x n; world
-    x-ish for a horizontal plane), v = n x u (up the plane)."""
-    u = np.cross(UP, n)
-    if np.linalg.norm(u) < 1e-6:  # a horizontal plane: u along world x
-        u = np.cross(np.array([0.0, 1.0, 0.0]), n)
-    u = u / np.linalg.norm(u)
-    return u, np.cross(n, u)
 
 
 def perception_mesh(mesh: trimesh.Trimesh, max_faces: int, max_edge: float, cap: Capture | None = None,
@@ -91,11 +79,7 @@ def _face_pixels(mesh: trimesh.Trimesh, cap: Capture, i: int, depth: np.ndarray,
     """[F] flat pixel index of each face centroid in frame i where the centroid is visible (its
     z agrees with the ray-cast depth there within ``tol`` + 1 % of z), else -1."""
     it = cap.intrinsics
-    uv, z = project_points(np.asarray(mesh.triangles_center), cap.frames[i].w2c, it)
-    ok = z > 1e-3
-    uv = np.where(ok[:, None], uv, -1.0)
-    x, y = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
-    ok &= (x >= 0) & (x < it.width) & (y >= 0) & (y < it.height)
+    y, x, z, ok = pixel_of(np.asarray(mesh.triangles_center), cap.frames[i].w2c, it, near=1e-3)
     idx = np.where(ok, y * it.width + x, 0)
     d = depth.ravel()[idx]
     ok &= (d > 0) & (np.abs(d - z) < tol + 0.01 * z)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drawer_lib.paths import LAYOUT, ScenePaths
 from drawer_lib.report.geometry_table import read_curve
 
 PAPER = {"textured_mesh": (19.71, 0.785, 0.323), "static_gs": (25.87, 0.889, 0.276),
@@ -12,13 +13,14 @@ PAPER = {"textured_mesh": (19.71, 0.785, 0.323), "static_gs": (25.87, 0.889, 0.2
 
 
 def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
+    """{scene: {variant: {"metrics", "curve"}}} of the appearance variants that have run."""
     rows: dict = {}
     for s in scenes:
         for v in variants:
-            d = out / s / "appearance" / v
-            if (d / "metrics.json").is_file():
-                rows.setdefault(s, {})[v] = {"metrics": json.loads((d / "metrics.json").read_text()),
-                                            "curve": read_curve(d / "curve.csv")}
+            d = ScenePaths(out, s).appearance_dir(v)
+            if (d / LAYOUT["metrics"]).is_file():
+                rows.setdefault(s, {})[v] = {"metrics": json.loads((d / LAYOUT["metrics"]).read_text()),
+                                            "curve": read_curve(d / LAYOUT["curve"])}
     return rows
 
 

@@ -7,6 +7,7 @@ import numpy as np
 
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import read_u16
+from drawer_lib.paths import capture_name
 
 
 def colorize_depth(d: np.ndarray, lo: float | None = None, hi: float | None = None) -> np.ndarray:
@@ -45,7 +46,7 @@ def contact_sheet(cap: Capture, frames: list[int]) -> np.ndarray:
             tiles.append(((cap.mono_normal(i) * 0.5 + 0.5) * 255).clip(0, 255).astype(np.uint8))
         if f.detections_path:
             tiles.append(colorize_labels(cap.detections(i)[0]))
-        inst = cap.root / "gt" / "instances" / f"{f.stem}.png"
+        inst = cap.root / capture_name("gt_instances") / f"{f.stem}.png"
         if inst.is_file():
             tiles.append(colorize_labels(read_u16(inst), seed=3))
         rows.append(np.concatenate(tiles, 1))

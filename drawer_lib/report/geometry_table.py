@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from drawer_lib.paths import LAYOUT, ScenePaths
+
 COLUMNS = [("chamfer_l1", "Chamfer-L1 (mm)", 1000.0), ("fscore_1cm", "F@1cm", 1.0), ("fscore_2cm", "F@2cm", 1.0),
            ("normal_consistency", "NC", 1.0)]
 
@@ -34,14 +36,16 @@ def read_curve(p: Path) -> list[dict]:
 
 
 def collect(out: Path, scenes: list[str], selected: str, variants: list[str]) -> list[Row]:
+    """The sdf / mesh metrics and curves of the selected config and each variant, per scene
+    (those whose mesh stage has run)."""
     rows = []
     for s in scenes:
-        entries = [(f"{selected} (selected)", out / s)] + [(v, out / s / "geometry" / v) for v in variants]
-        for name, d in entries:
-            if not (d / "mesh" / "metrics.json").is_file():
+        entries = [(f"{selected} (selected)", ScenePaths(out, s))] + [(v, ScenePaths(out, s, v)) for v in variants]
+        for name, sp in entries:
+            if not sp.metrics("mesh").is_file():
                 continue
-            rows.append(Row(s, name, d, _read_json(d / "sdf" / "metrics.json"), _read_json(d / "mesh" / "metrics.json"),
-                            read_curve(d / "sdf" / "curve.csv")))
+            rows.append(Row(s, name, sp.stage_dir("mesh").parent, _read_json(sp.metrics("sdf")),
+                            _read_json(sp.metrics("mesh")), read_curve(sp.stage_dir("sdf") / LAYOUT["curve"])))
     return rows
 
 

@@ -1,9 +1,11 @@
 """Writing a report folder (a markdown table, its JSON, a plot) whole or not at all."""
 
-import json
 import shutil
 from collections.abc import Callable
 from pathlib import Path
+
+from drawer_lib.io.images import write_json
+from drawer_lib.paths import LAYOUT
 
 
 def write_report(out: Path, md: str, js: dict, plot: Callable[[Path], None]) -> None:
@@ -13,8 +15,8 @@ def write_report(out: Path, md: str, js: dict, plot: Callable[[Path], None]) -> 
     tmp = out.with_name(f".{out.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
-    (tmp / "table.md").write_text(md)
-    (tmp / "table.json").write_text(json.dumps(js, indent=2))
-    plot(tmp / "curves.png")
+    (tmp / LAYOUT["report"]["table"]).write_text(md)
+    write_json(tmp / LAYOUT["report"]["table_json"], js)
+    plot(tmp / LAYOUT["report"]["plot"])
     shutil.rmtree(out, ignore_errors=True)
     tmp.rename(out)

@@ -122,7 +122,8 @@ class NeuralConfig:
     bounds: BoundsConfig = field(default_factory=BoundsConfig)
     monocal: MonoCalConfig = field(default_factory=MonoCalConfig)
     steps: int = 2000
-    max_seconds: float = 300.0  # hard cap on training time incl. mono calibration (the schedule is by steps)
+    max_seconds: float | None = None  # optional cap on training time incl. mono calibration; None: steps only
+    budget_s: float = 300.0  # the target training time, reported (within_budget) not enforced
     lr_grid: float = 0.01
     lr_mlp: float = 0.002
     lr_final_factor: float = 0.1
@@ -132,7 +133,9 @@ class NeuralConfig:
     eval_cell: float = 0.02  # marching-cubes cell of the quick meshes on the curve
 
     def __post_init__(self):
-        _check(self.steps >= 1 and self.max_seconds > 0, "neural: need steps >= 1 and max_seconds > 0")
+        _check(self.steps >= 1, f"neural.steps = {self.steps} must be >= 1")
+        _check(self.max_seconds is None or self.max_seconds > 0,
+               f"neural.max_seconds = {self.max_seconds} must be > 0 or null (no cap)")
         _check(0 < self.beta1 <= self.beta0, "neural: need 0 < beta1 <= beta0")
         _check(self.eval_every >= 1, "neural.eval_every must be >= 1")
 

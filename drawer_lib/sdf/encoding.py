@@ -25,6 +25,8 @@ import torch
 from jaxtyping import Float
 from torch import Tensor, nn
 
+from drawer_lib.errors import InputError
+
 _PRIMES = (1, 2654435761, 805459861)
 
 # the 8 corners of a cell as (dx, dy, dz) in {0, 1}
@@ -104,7 +106,7 @@ class MultiResGrid(nn.Module):
                              f"{n_levels}, {cell_coarse}, {cell_fine}")
         lo, hi = torch.as_tensor(lo, dtype=torch.float32), torch.as_tensor(hi, dtype=torch.float32)
         if not torch.all(hi > lo):
-            raise ValueError(f"MultiResGrid: empty box {lo.tolist()} .. {hi.tolist()}")
+            raise InputError(f"MultiResGrid: empty box {lo.tolist()} .. {hi.tolist()}")
         self.register_buffer("lo", lo)
         self.register_buffer("hi", hi)
         self.n_levels, self.n_features = n_levels, n_features

@@ -2,13 +2,13 @@
 log the error-against-time curve, write ``field.pt`` and the metrics."""
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
-from drawer_lib.io.manifest import Manifest
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import save_grid, save_neural
@@ -32,9 +32,10 @@ def check_capture(cap: Capture) -> None:
         raise InputError(f"{cap.root / 'transforms.json'}: images of {it.width}x{it.height} px are too small")
 
 
-def run_sdf(cfg: SdfConfig, cap: Capture, manifest: Manifest, run: StageRun, out: Path) -> dict:
-    """Fit the field selected by ``cfg.method`` and write ``out/field.pt``; returns metrics."""
+def run_sdf(cfg: SdfConfig, cap: Capture, run: StageRun) -> dict:
+    """Fit the field selected by ``cfg.method`` and write the stage's ``field.pt``; returns metrics."""
     check_capture(cap)
+    manifest = read_manifest(cap.root / capture_name("manifest"))
     probe = None
     if manifest.has.get("gt", False):
         cell = cfg.neural.eval_cell
@@ -42,11 +43,11 @@ def run_sdf(cfg: SdfConfig, cap: Capture, manifest: Manifest, run: StageRun, out
     else:
         run.skip("geometry_curve_metrics", manifest.missing("gt") or "no ground truth")
     if cfg.method == "tsdf":
-        return _run_tsdf(cfg, cap, manifest, run, out, probe)
-    return _run_neural(cfg, cap, manifest, run, out, probe)
+        return _run_tsdf(cfg, cap, manifest, run, probe)
+    return _run_neural(cfg, cap, manifest, run, probe)
 
 
-def _run_tsdf(cfg, cap, manifest, run, out, probe) -> dict:
+def _run_tsdf(cfg, cap, manifest, run, probe) -> dict:
     if not manifest.has.get("depth", False):
         raise InputError(f"sdf.method = tsdf needs metric depth, but {manifest.missing('depth')}; "
                          "use the neural SDF (sdf=neural) for RGB + monocular priors")
@@ -54,7 +55,7 @@ def _run_tsdf(cfg, cap, manifest, run, out, probe) -> dict:
     grid = fuse_tsdf(cap, cap.train, cfg.tsdf, run.progress)
     fuse_s = time.perf_counter() - t0
     observed = grid.observed()
-    save_grid(out / "field.pt", grid, {"method": "tsdf", "frames": len(cap.train)})
+    save_grid(run.out("field"), grid, {"method": "tsdf", "frames": len(cap.train)})
     m = {"method": "tsdf", "train_s": round(fuse_s, 3), "voxels_observed": int(observed.sum()),
          "grid_shape": list(grid.values.shape)}
     curve = run.curve(CURVE_COLUMNS)
@@ -65,7 +66,7 @@ def _run_tsdf(cfg, cap, manifest, run, out, probe) -> dict:
     return m
 
 
-def _run_neural(cfg, cap, manifest, run, out, probe) -> dict:
+def _run_neural(cfg, cap, manifest, run, probe) -> dict:
     n = cfg.neural
     curve = run.curve(CURVE_COLUMNS + ["loss", "beta"])
     last_probe: dict[str, float] = {}
@@ -85,9 +86,9 @@ def _run_neural(cfg, cap, manifest, run, out, probe) -> dict:
     for k, why in res.priors.skipped.items():
         run.skip(k, why)
     info = {"method": "neural", "box_how": res.box_how, "steps": res.steps}
-    save_neural(out / "field.pt", res.model.field, n, info)
+    save_neural(run.out("field"), res.model.field, n, info)
     m = {"method": "neural", "train_s": round(res.train_s, 3), "steps": res.steps,
-         "stopped_by_time": res.stopped_by_time, "box": [res.lo.tolist(), res.hi.tolist()], "box_how": res.box_how,
+         "stopped_by_time": res.stopped_by_time, "within_budget": res.train_s <= n.budget_s, "box": [res.lo.tolist(), res.hi.tolist()], "box_how": res.box_how,
          "depth_source": ("sensor" if res.priors.depth else "calibrated_mono" if res.priors.calibrated else "none"),
          "final_losses": {k: round(v, 6) for k, v in res.last_losses.items()}}
     if res.calibration is not None:

@@ -13,12 +13,14 @@ import numpy as np
 import torch
 import trimesh
 
+from drawer_lib.geometry.camera import pixel_dirs
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
+from drawer_lib.io.mesh import load_mesh
 from drawer_lib.mesh.extract import frustum_mask, grid_field_mesh, marching_cubes_mesh, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
+from drawer_lib.paths import capture_name
 from drawer_lib.sdf.io import GridSDF
-from drawer_lib.sdf.rays import pixel_dirs_cam
 
 DepthFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]  # (origins, dirs [R, 3]) -> z-depth [R]
 
@@ -35,7 +37,7 @@ class GeometryProbe:
 
     def __init__(self, cap: Capture, cell: float = 0.02, n_points: int = 100_000, pixel_stride: int = 2):
         self.cap, self.cell = cap, cell
-        self.gt = trimesh.load(cap.root / "gt" / "mesh.ply", process=False)
+        self.gt = load_mesh(cap.root / capture_name("gt_mesh"))
         self.w2c = np.stack([cap.frames[i].w2c for i in cap.train])
         self.evaluator = MeshEvaluator(self.gt, cap.intrinsics, self.w2c, n_points=n_points)
         self.test = self._test_depth(pixel_stride)
@@ -48,7 +50,7 @@ class GeometryProbe:
         sel = np.zeros((it.height, it.width), bool)
         sel[::stride, ::stride] = True
         sel = sel.reshape(-1)
-        d_cam = pixel_dirs_cam(it)[sel]
+        d_cam = pixel_dirs(it).reshape(-1, 3)[sel]
         os_, ds, zs = [], [], []
         for i in self.cap.test:
             z = rc.depth_normals(it, self.cap.frames[i].w2c)[0].reshape(-1)[sel]

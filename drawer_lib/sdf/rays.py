@@ -11,15 +11,9 @@ import torch
 from torch import Tensor
 
 from drawer_lib.errors import InputError
-from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.geometry.camera import pixel_dirs
 from drawer_lib.io.capture import Capture
 from drawer_lib.sdf.priors import MonoEstimator
-
-
-def pixel_dirs_cam(intr: Intrinsics) -> np.ndarray:
-    """[H*W, 3] camera-frame directions (x, y, 1) through pixel centres (library convention)."""
-    j, i = np.meshgrid(np.arange(intr.width) + 0.5, np.arange(intr.height) + 0.5)
-    return np.stack([(j - intr.cx) / intr.fx, (i - intr.cy) / intr.fy, np.ones_like(j)], -1).reshape(-1, 3)
 
 
 @dataclass
@@ -46,7 +40,7 @@ class RayBank:
         c2w = np.stack([cap.frames[i].c2w for i in frames])
         self.R = torch.tensor(c2w[:, :3, :3], dtype=torch.float32)
         self.C = torch.tensor(c2w[:, :3, 3], dtype=torch.float32)
-        self.d_cam = torch.tensor(pixel_dirs_cam(self.intr), dtype=torch.float32)
+        self.d_cam = torch.tensor(pixel_dirs(self.intr).reshape(-1, 3), dtype=torch.float32)  # [H*W, 3], z = 1
         self.rgb = torch.tensor(np.stack([cap.image(i).reshape(-1, 3) for i in frames]), dtype=torch.float32) / 255.0
         self.depth = self.mono = self.normal = None
         if use_depth:

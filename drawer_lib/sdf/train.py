@@ -15,8 +15,8 @@ from drawer_lib.io.manifest import Manifest
 from drawer_lib.sdf import losses as L
 from drawer_lib.sdf.config import NeuralConfig
 from drawer_lib.sdf.field import SDFField
-from drawer_lib.sdf.priors import make_estimator
 from drawer_lib.sdf.monocal import MonoCalResult, calibrate_mono_depth
+from drawer_lib.sdf.priors import make_estimator
 from drawer_lib.sdf.rays import RayBank, focus_depth, scene_box
 from drawer_lib.sdf.render import beta_schedule, laplace_density, render_weights
 from drawer_lib.sdf.sampling import SdfCache, place_samples
@@ -233,7 +233,7 @@ def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: 
         last = {k: float(v.detach()) for k, v in terms.items()} | {"total": float(total.detach()), "beta": beta}
         if on_eval is not None and step > 0 and step % cfg.eval_every == 0:
             on_eval(model, step, train_s, last)
-        if train_s > cfg.max_seconds:
+        if cfg.max_seconds is not None and train_s > cfg.max_seconds:
             stopped = True
             break
     steps_done = step + 1

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 from jaxtyping import Float
 
+from drawer_lib.errors import InputError
 from drawer_lib.geometry.rotations import rotation_angle
 
 
@@ -32,16 +33,16 @@ def umeyama(src: Float[np.ndarray, "N 3"], dst: Float[np.ndarray, "N 3"]) -> Sim
     that are not collinear (ValueError otherwise)."""
     src, dst = np.asarray(src, np.float64), np.asarray(dst, np.float64)
     if src.shape != dst.shape or src.ndim != 2 or src.shape[1] != 3 or len(src) < 3:
-        raise ValueError(f"umeyama: need matching [N>=3, 3] point sets, got {src.shape} and {dst.shape}")
+        raise InputError(f"umeyama: need matching [N>=3, 3] point sets, got {src.shape} and {dst.shape}")
     mu_s, mu_d = src.mean(0), dst.mean(0)
     xs, xd = src - mu_s, dst - mu_d
     var_s = (xs**2).sum() / len(src)
     if var_s < 1e-18:
-        raise ValueError("umeyama: source points coincide")
+        raise InputError("umeyama: source points coincide")
     cov = xd.T @ xs / len(src)
     U, D, Vt = np.linalg.svd(cov)
     if D[1] < 1e-12 * max(D[0], 1e-300):
-        raise ValueError("umeyama: points are collinear; the rotation is not determined")
+        raise InputError("umeyama: points are collinear; the rotation is not determined")
     S = np.eye(3)
     if np.linalg.det(U) * np.linalg.det(Vt) < 0:
         S[2, 2] = -1
@@ -85,7 +86,7 @@ def estimate_up(c2w: np.ndarray) -> np.ndarray:
         z = mean_up - (mean_up @ xa) * xa
     n = np.linalg.norm(z)
     if n < 1e-9:
-        raise ValueError("estimate_up: camera orientations do not determine an up direction")
+        raise InputError("estimate_up: camera orientations do not determine an up direction")
     z = z / n
     return z if z @ mean_up >= 0 else -z
 
@@ -105,7 +106,7 @@ def gravity_frame(c2w: np.ndarray, points: np.ndarray, depths: np.ndarray, media
     d = np.asarray(depths, np.float64)
     d = d[np.isfinite(d) & (d > 0)]
     if len(d) == 0:
-        raise ValueError("gravity_frame: no positive point depths to fix the scale")
+        raise InputError("gravity_frame: no positive point depths to fix the scale")
     s = median_depth_m / float(np.median(d))
     origin = np.median(points, axis=0) if len(points) else c2w[:, :3, 3].mean(0)
     return Sim3(s, R, -s * R @ origin)

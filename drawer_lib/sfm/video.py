@@ -7,7 +7,8 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-from drawer_lib.io.images import CaptureError, read_rgb
+from drawer_lib.errors import CaptureError
+from drawer_lib.io.images import read_rgb
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 

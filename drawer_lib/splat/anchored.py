@@ -23,6 +23,7 @@ import torch
 from jaxtyping import Float, Int
 from torch import Tensor
 
+from drawer_lib.geometry.rotations import axis_angle_to_quat, matrix_to_quat, quat_mul
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import C0
 
@@ -62,24 +63,6 @@ class FaceFrames:
         return self.A + (self.tri2d.mean(1)[:, :1] * self.xhat + self.tri2d.mean(1)[:, 1:] * self.yhat)
 
 
-def matrix_to_quat_wxyz(R: Float[Tensor, "F 3 3"]) -> Float[Tensor, "F 4"]:
-    """Rotation matrices -> unit quaternions (w >= 0), Shepperd's method, batched."""
-    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
-    tr = m00 + m11 + m22
-    cands = torch.stack([1 + tr, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
-    k = cands.argmax(-1)
-    s = torch.sqrt(cands.gather(1, k[:, None])[:, 0].clamp_min(1e-12)) * 2  # 4 * |component|
-    q = torch.zeros(R.shape[0], 4, dtype=R.dtype)
-    r21, r12, r02, r20, r10, r01 = R[:, 2, 1], R[:, 1, 2], R[:, 0, 2], R[:, 2, 0], R[:, 1, 0], R[:, 0, 1]
-    q0 = torch.stack([s / 4, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s], -1)
-    q1 = torch.stack([(r21 - r12) / s, s / 4, (r01 + r10) / s, (r02 + r20) / s], -1)
-    q2 = torch.stack([(r02 - r20) / s, (r01 + r10) / s, s / 4, (r12 + r21) / s], -1)
-    q3 = torch.stack([(r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, s / 4], -1)
-    q = torch.where((k == 0)[:, None], q0, torch.where((k == 1)[:, None], q1, torch.where((k == 2)[:, None], q2, q3)))
-    q = q / q.norm(dim=-1, keepdim=True)
-    return torch.where(q[:, :1] < 0, -q, q)
-
-
 def face_frames(verts: Float[Tensor, "V 3"], faces: Int[Tensor, "F 3"], min_area: float = 1e-12) -> FaceFrames:
     """Frames of the faces whose area exceeds ``min_area`` (m^2); degenerate faces (zero area,
     repeated vertices) are left out — ``face_ids`` says which faces remain."""
@@ -99,7 +82,7 @@ def face_frames(verts: Float[Tensor, "V 3"], faces: Int[Tensor, "F 3"], min_area
     yc = ((C - A) * yh).sum(-1)
     tri = torch.stack([torch.zeros_like(xc), torch.zeros_like(xc), c, torch.zeros_like(xc), xc, yc], -1).view(-1, 3, 2)
     R = a * b * c / (4 * area)
-    q = matrix_to_quat_wxyz(torch.stack([xh, yh, n], -1))
+    q = matrix_to_quat(torch.stack([xh, yh, n], -1))
     return FaceFrames(A, xh, yh, n, tri, R, area, q, ids)
 
 
@@ -201,21 +184,6 @@ def barycentric_clip(p: Float[Tensor, "N 2"], tri: Float[Tensor, "N 3 2"]) -> Fl
     return (lam[..., None] * tri).sum(1)
 
 
-def _axis_angle_quat(v: Tensor) -> Tensor:
-    """wxyz quaternions of rotation vectors [N, 3] (stable at 0)."""
-    ang = v.norm(dim=-1, keepdim=True)
-    half = 0.5 * ang
-    k = torch.where(ang > 1e-8, torch.sin(half) / ang.clamp_min(1e-30), 0.5 - ang * ang / 48)
-    return torch.cat([torch.cos(half), v * k], -1)
-
-
-def quat_mul(a: Tensor, b: Tensor) -> Tensor:
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
-    return torch.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                        aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
-
-
 @dataclass
 class Anchored:
     """What the forward parametrisation gives: Gaussians plus the clipped quantities."""
@@ -241,8 +209,8 @@ def anchored_gaussians(p: AnchoredParams, frames: FaceFrames, bounds: AnchorBoun
     s = clip_through(s, torch.minimum(s, cap), mode)
     theta, alpha, phi = p.angles.unbind(-1)
     phi_c = clip_through(phi, phi.clamp(0.0, bounds.cone), mode)
-    q_spin = _axis_angle_quat(torch.stack([torch.zeros_like(theta), torch.zeros_like(theta), theta], -1))
-    q_tilt = _axis_angle_quat(torch.stack([torch.cos(alpha), torch.sin(alpha), torch.zeros_like(alpha)], -1) * phi_c[:, None])
+    q_spin = axis_angle_to_quat(torch.stack([torch.zeros_like(theta), torch.zeros_like(theta), theta], -1))
+    q_tilt = axis_angle_to_quat(torch.stack([torch.cos(alpha), torch.sin(alpha), torch.zeros_like(alpha)], -1) * phi_c[:, None])
     q = quat_mul(frames.q_face[f], quat_mul(q_tilt, q_spin))
     sh = torch.cat([p.sh_dc, p.sh_rest], 1)
     g = Gaussians(means, q, s, torch.sigmoid(p.opacity_logit), sh)
@@ -268,8 +236,10 @@ def distance_to_triangle_2d(p: Tensor, tri: Tensor) -> Tensor:
     return torch.where(inside, torch.zeros_like(dist), dist)
 
 
-def check_bounds(a: Anchored, p: AnchoredParams, frames: FaceFrames, bounds: AnchorBounds, tol: float = 1e-5) -> None:
-    """Raise AssertionError naming the first Gaussian outside its face bounds."""
+def bounds_violation(a: Anchored, p: AnchoredParams, frames: FaceFrames, bounds: AnchorBounds,
+                     tol: float = 1e-5) -> str | None:
+    """None when every Gaussian of ``a`` lies within its face bounds (relative tolerance
+    ``tol``), else a message naming the first one outside and the bound it breaks."""
     f = p.face
     R = frames.radius[f]
     tri = frames.tri2d[f]
@@ -281,7 +251,8 @@ def check_bounds(a: Anchored, p: AnchoredParams, frames: FaceFrames, bounds: Anc
     for name, ok in (("in-face position", inside), ("normal offset", ok_e), ("scale", ok_s), ("tilt", ok_t)):
         if not bool(ok.all()):
             i = int(torch.nonzero(~ok)[0, 0])
-            raise AssertionError(f"Gaussian {i} (face {int(f[i])}) violates its {name} bound")
+            return f"Gaussian {i} (face {int(f[i])}) violates its {name} bound"
+    return None
 
 
 @torch.no_grad()

@@ -1,18 +1,20 @@
 """Config of the ``appearance`` stage (conf/appearance/<variant>.yaml). Lengths in metres."""
 
-from typing import Optional
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.splat.anchored import CLIP_MODES, AnchorBounds
+from drawer_lib.splat.strategy import MeshAnchoredStrategy
 
 VARIANTS = ("textured_mesh", "static_gs", "movable_gs", "movable_gs_ste", "free_gs")
 
 
 @dataclass(frozen=True)
 class LossConfig:
-    """main = l1 L1 + dssim (1 - SSIM) + alpha mean(relu(0.95 - alpha)) + mesh_depth |D_mesh -
-    D_gs| (where the mesh is seen) + aniso mean(relu(s_max / s_min - aniso_ratio)) (in-plane)."""
+    """Weights of the named loss terms (:func:`drawer_lib.splat.losses.appearance_losses`; 0
+    turns a term off): l1 L1 + dssim (1 - SSIM) + alpha mean(relu(0.95 - alpha)) + mesh_depth
+    |D_mesh - D_gs| (where the mesh is seen) + aniso mean(relu(s_max / s_min - aniso_ratio))
+    (in-plane scales, every ``aniso_every`` steps)."""
 
     l1: float = 0.8
     dssim: float = 0.2
@@ -20,6 +22,7 @@ class LossConfig:
     mesh_depth: float = 0.1
     aniso: float = 0.1
     aniso_ratio: float = 1.5
+    aniso_every: int = 10
 
 
 @dataclass(frozen=True)
@@ -41,19 +44,6 @@ class LrConfig:
 
 
 @dataclass(frozen=True)
-class StrategyConfig:
-    enabled: bool = True
-    refine_start: int = 200
-    refine_every: int = 100
-    refine_stop: int = 1500
-    reset_every: int = 1000
-    grad_thresh: float = 0.0008
-    size_thresh: float = 0.01
-    cull_alpha: float = 0.05
-    max_gaussians: int = 60000
-
-
-@dataclass(frozen=True)
 class AppearanceConfig:
     """``variant``: textured_mesh | static_gs (positions frozen at the face centroids) |
     movable_gs (clips without STE) | movable_gs_ste (the paper's method) | free_gs
@@ -68,7 +58,7 @@ class AppearanceConfig:
     static: bool = False
     max_faces: int = 30000
     steps: int = 2000
-    max_seconds: Optional[float] = None  # optional safety cap; None: the schedule is by steps only
+    max_seconds: float | None = None  # optional safety cap; None: the schedule is by steps only
     budget_s: float = 300.0  # the target training time, reported (within_budget) not enforced
     sh_degree: int = 3
     sh_every: int = 500  # the SH degree used rises by one every this many steps
@@ -76,7 +66,7 @@ class AppearanceConfig:
     bounds: AnchorBounds = field(default_factory=AnchorBounds)
     losses: LossConfig = field(default_factory=LossConfig)
     lr: LrConfig = field(default_factory=LrConfig)
-    strategy: StrategyConfig = field(default_factory=StrategyConfig)
+    strategy: MeshAnchoredStrategy | None = field(default_factory=MeshAnchoredStrategy)  # None: no density control
     eval_every: int = 250
     texture_cell: float = 0.005  # textured_mesh: one colour per face of at most cell^2 / 2
     texture_source: str = "sdf"  # sdf: the neural field's colour at the surface (DRAWER's bake) | images

@@ -5,7 +5,7 @@ import numpy as np
 import torch
 import trimesh
 
-from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.geometry.camera import Intrinsics, pixel_of
 from drawer_lib.geometry.raycast import Raycaster
 
 
@@ -22,16 +22,8 @@ def face_colors(points: np.ndarray, images: np.ndarray, intr: Intrinsics, w2cs: 
     F = len(points)
     acc = np.zeros((F, 3))
     cnt = np.zeros(F)
-    H, W = depths.shape[1:]
     for img, T, D in zip(images, w2cs, depths):
-        pc = points @ T[:3, :3].T + T[:3, 3]
-        z = pc[:, 2]
-        zs = np.where(z > 1e-6, z, 1.0)
-        u = intr.fx * pc[:, 0] / zs + intr.cx
-        v = intr.fy * pc[:, 1] / zs + intr.cy
-        j, i = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
-        ok = (z > 1e-6) & (j >= 0) & (j < W) & (i >= 0) & (i < H)
-        jj, ii = np.where(ok, j, 0), np.where(ok, i, 0)
+        ii, jj, z, ok = pixel_of(points, T, intr, near=1e-6)
         d = D[ii, jj]
         ok &= (d > 0) & (np.abs(d - z) <= abs_tol + rel_tol * z)
         acc[ok] += img[ii[ok], jj[ok]]

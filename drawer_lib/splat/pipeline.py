@@ -4,11 +4,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, InvariantError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_rgb
+from drawer_lib.io.mesh import load_mesh
 from drawer_lib.runner import StageRun
 from drawer_lib.splat.anchored import anchored_gaussians, bound_activity
 from drawer_lib.splat.config import AppearanceConfig
@@ -17,25 +17,23 @@ from drawer_lib.splat.train import (EvalResult, bounds_report, evaluate_images, 
                                     train_gaussians)
 
 
-def _write_renders(out: Path, cap: Capture, res: EvalResult) -> None:
-    d = out / "renders"
+def _write_renders(d: Path, cap: Capture, res: EvalResult) -> None:
     d.mkdir()
     for i, img in zip(cap.test, res.renders):
         write_rgb(d / f"{cap.frames[i].stem}.png", (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
 
 
-def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: StageRun, out: Path,
+def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: StageRun,
                    field_path: Path | None = None) -> dict:
-    if not mesh_path.is_file():
-        raise InputError(f"{mesh_path}: mesh is missing (run the mesh stage first)")
-    mesh = trimesh.load(mesh_path, process=False)
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError(f"{mesh_path}: not a triangle mesh with faces")
+    """Train (or bake) one variant of the ablation on the mesh at ``mesh_path`` and write its
+    model, test renders and metrics; ``field_path``: the neural SDF whose colour head the
+    textured mesh bakes (``texture_source: sdf``)."""
+    mesh = load_mesh(mesh_path, "run the mesh stage first")
     t0 = time.perf_counter()
     sc = prepare(cap, mesh, cfg)
     prep_s = time.perf_counter() - t0
     m: dict = {"variant": cfg.variant, "mesh_faces": len(sc.mesh.faces), "prepare_s": round(prep_s, 3)}
-    model = out / "model"
+    model = run.out("model")
     model.mkdir()
     curve = run.curve(["test_psnr", "n_gaussians"])
     if cfg.variant == "textured_mesh":
@@ -65,7 +63,8 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
         res = evaluate_images(render_test(st.params, st.frames, cfg, sc), sc.test_rgb)
         violation = bounds_report(st.params, st.frames, cfg)
         if cfg.clip != "free" and violation is not None:
-            raise AssertionError(f"appearance {cfg.variant}: {violation}")
+            raise InvariantError(f"appearance {cfg.variant}: {violation} (clip = {cfg.clip} must keep every "
+                                 "Gaussian in its face bounds)")
         a = anchored_gaussians(st.params, st.frames, cfg.bounds, cfg.clip)
         write_gaussian_ply(model / "gaussians.ply", a.gaussians)
         write_face_binding(model / "binding.npz", st.params.face, st.frames.face_ids, a.pos2d, a.elevate)
@@ -75,6 +74,6 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
                   "within_budget": st.train_s <= cfg.budget_s, "within_face_bounds": violation is None, **st.counts})
         if cfg.clip != "free":  # where the clips act at the end (hard: zero gradient there; ste: identity)
             m.update({f"at_bound_{k}": round(v, 4) for k, v in bound_activity(st.params, st.frames, cfg.bounds).items()})
-    _write_renders(out, cap, res)
+    _write_renders(run.out("renders"), cap, res)
     m.update({"psnr": res.psnr, "ssim": res.ssim, "lpips": res.lpips})
     return m

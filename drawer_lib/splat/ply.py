@@ -12,6 +12,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from drawer_lib.errors import InputError
 from drawer_lib.splat.render import Gaussians
 
 
@@ -49,7 +50,7 @@ def read_gaussian_ply(path: Path) -> dict[str, np.ndarray]:
     end = raw.index(b"end_header\n") + len(b"end_header\n")
     lines = raw[:end].decode("ascii").splitlines()
     if lines[1] != "format binary_little_endian 1.0":
-        raise ValueError(f"{path}: not a binary little-endian PLY")
+        raise InputError(f"{path}: not a binary little-endian PLY")
     n = int(next(x for x in lines if x.startswith("element vertex")).split()[-1])
     names = [x.split()[-1] for x in lines if x.startswith("property float")]
     arr = np.frombuffer(raw[end:], "<f4", count=n * len(names)).reshape(n, len(names))

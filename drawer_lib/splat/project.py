@@ -1,8 +1,9 @@
 """Projection of 3D Gaussians to the image (EWA splatting), differentiable, in PyTorch.
 
 Conventions: quaternions wxyz (normalised here), scales are standard deviations (not logs),
-``viewmat`` is the OpenCV world-to-camera [4, 4], ``K`` = (fx, fy, cx, cy) with pixel centres
-at integer + 0.5 (this library's convention, also gsplat's). The 2D covariance is
+``viewmat`` is the OpenCV world-to-camera [4, 4] tensor, ``intr`` the camera's
+:class:`~drawer_lib.geometry.camera.Intrinsics` (pixel centres at integer + 0.5, this library's
+convention, also gsplat's). The 2D covariance is
 J W Sigma W^T J^T + eps2d I (gsplat's "classic" 0.3 px low-pass), with the Jacobian's x/z and
 y/z clamped to the image plus 30 % of its size (3DGS, gsplat) so Gaussians far outside the frustum do not
 blow up. Culled Gaussians (behind ``near``, beyond ``far``, off-screen, degenerate covariance)
@@ -16,6 +17,9 @@ import torch
 from jaxtyping import Float
 from torch import Tensor
 
+from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.geometry.rotations import quat_to_matrix
+
 
 @dataclass
 class Projected:
@@ -27,21 +31,17 @@ class Projected:
 
 
 def quat_scale_to_covar(quats: Float[Tensor, "N 4"], scales: Float[Tensor, "N 3"]) -> Float[Tensor, "N 3 3"]:
-    """Sigma = R diag(s^2) R^T with R from the normalised wxyz quaternion."""
-    q = quats / quats.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-    w, x, y, z = q.unbind(-1)
-    R = torch.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).view(-1, 3, 3)
-    M = R * scales[:, None, :]
+    """Sigma = R diag(s^2) R^T with R from the (normalised) wxyz quaternion."""
+    M = quat_to_matrix(quats) * scales[:, None, :]
     return M @ M.transpose(1, 2)
 
 
 def project_gaussians(means: Float[Tensor, "N 3"], covars: Float[Tensor, "N 3 3"], viewmat: Float[Tensor, "4 4"],
-                      K: tuple[float, float, float, float], width: int, height: int, near: float = 0.01,
-                      far: float = 1e10, eps2d: float = 0.3, radius_clip: float = 0.0) -> Projected:
-    fx, fy, cx, cy = K
+                      intr: Intrinsics, near: float = 0.01, far: float = 1e10, eps2d: float = 0.3,
+                      radius_clip: float = 0.0) -> Projected:
+    """The PyTorch reference projection (differentiable in every input, ``viewmat`` included)."""
+    fx, fy, cx, cy = intr.params
+    width, height = intr.width, intr.height
     Rw, tw = viewmat[:3, :3], viewmat[:3, 3]
     pc = means @ Rw.T + tw  # [N, 3]
     z = pc[:, 2]
@@ -76,7 +76,7 @@ def project_gaussians(means: Float[Tensor, "N 3"], covars: Float[Tensor, "N 3 3"
 
 class _ProjectFn(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, means, quats, scales, viewmat, K, width, height, near, far, eps2d):
+    def forward(ctx, means, quats, scales, viewmat, intr, near, far, eps2d):
         from drawer_lib.splat import _project_kernels as PK
 
         n = means.shape[0]
@@ -86,30 +86,31 @@ class _ProjectFn(torch.autograd.Function):
         conics = np.zeros((n, 3), m.dtype)
         depths = np.zeros(n, m.dtype)
         radii = np.zeros(n, np.int32)
-        PK.project_forward(m, q, s, V, *map(float, K), width, height, near, far, eps2d, means2d, conics, depths, radii)
-        ctx.state = (m, q, s, V, K, width, height, eps2d, radii)
+        PK.project_forward(m, q, s, V, *map(float, intr.params), intr.width, intr.height, near, far, eps2d, means2d,
+                           conics, depths, radii)
+        ctx.state = (m, q, s, V, intr, eps2d, radii)
         return torch.from_numpy(means2d), torch.from_numpy(conics), torch.from_numpy(depths), torch.from_numpy(radii)
 
     @staticmethod
     def backward(ctx, g_means2d, g_conics, g_depths, _g_radii):
         from drawer_lib.splat import _project_kernels as PK
 
-        m, q, s, V, K, width, height, eps2d, radii = ctx.state
+        m, q, s, V, intr, eps2d, radii = ctx.state
         f = lambda g: g.detach().to(torch.from_numpy(m).dtype).contiguous().numpy()  # noqa: E731
         gm, gq, gs = np.empty_like(m), np.empty_like(q), np.empty_like(s)
-        PK.project_backward(m, q, s, V, *map(float, K), width, height, eps2d, radii, f(g_means2d), f(g_conics),
-                            f(g_depths), gm, gq, gs)
-        return torch.from_numpy(gm), torch.from_numpy(gq), torch.from_numpy(gs), None, None, None, None, None, None, None
+        PK.project_backward(m, q, s, V, *map(float, intr.params), intr.width, intr.height, eps2d, radii, f(g_means2d),
+                            f(g_conics), f(g_depths), gm, gq, gs)
+        return torch.from_numpy(gm), torch.from_numpy(gq), torch.from_numpy(gs), None, None, None, None, None
 
 
 def project_gaussians_fused(means: Float[Tensor, "N 3"], quats: Float[Tensor, "N 4"], scales: Float[Tensor, "N 3"],
-                            viewmat: Float[Tensor, "4 4"], K: tuple[float, float, float, float], width: int, height: int,
-                            near: float = 0.01, far: float = 1e10, eps2d: float = 0.3) -> Projected:
+                            viewmat: Float[Tensor, "4 4"], intr: Intrinsics, near: float = 0.01, far: float = 1e10,
+                            eps2d: float = 0.3) -> Projected:
     """:func:`project_gaussians` of ``quat_scale_to_covar(quats, scales)`` in one numba kernel
     (forward and backward); no gradient to ``viewmat``; ``cov2d`` is not returned (None)."""
     if means.device.type != "cpu":
         raise ValueError("project_gaussians_fused runs on CPU tensors")
     if viewmat.requires_grad:
         raise ValueError("project_gaussians_fused: no gradient to viewmat; use project_gaussians (camera optimisation)")
-    means2d, conics, depths, radii = _ProjectFn.apply(means, quats, scales, viewmat, K, width, height, near, far, eps2d)
+    means2d, conics, depths, radii = _ProjectFn.apply(means, quats, scales, viewmat, intr, near, far, eps2d)
     return Projected(means2d, conics, depths, radii, None)

@@ -1,6 +1,7 @@
 """``render``: one stateless entry point for 3D Gaussian splatting (gsplat's ``rasterization``
 shape), with a CPU backend (PyTorch projection + numba compositor) and an optional gsplat
-backend for CUDA users (``backend="gsplat"``)."""
+backend for CUDA users (``backend="gsplat"``: the Gaussians are rasterized on the device and
+the outputs come back to the Gaussians' device, differentiably)."""
 
 from dataclasses import dataclass
 
@@ -9,9 +10,12 @@ from jaxtyping import Float
 from torch import Tensor
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.splat.project import project_gaussians, project_gaussians_fused, quat_scale_to_covar
 from drawer_lib.splat.rasterize import composite
 from drawer_lib.splat.sh import sh_to_color, sh_to_color_fused
+
+BACKENDS = ("cpu", "gsplat")
 
 
 @dataclass
@@ -34,47 +38,46 @@ class Gaussians:
             raise ValueError(f"Gaussians.sh: shape {tuple(self.sh.shape)}, expected ({n}, K, 3)")
 
 
-@dataclass(frozen=True)
-class Camera:
-    viewmat: Tensor  # [4, 4] OpenCV world-to-camera
-    K: tuple[float, float, float, float]  # fx, fy, cx, cy (pixel centres at integer + 0.5)
-    width: int
-    height: int
-
-    @property
-    def center(self) -> Tensor:
-        R, t = self.viewmat[:3, :3], self.viewmat[:3, 3]
-        return -R.T @ t
-
-
 @dataclass
 class RenderOutput:
     rgb: Tensor  # [H, W, 3] with the background composited
     depth: Tensor  # [H, W] expected depth (sum w z / alpha; 0 where alpha = 0)
     alpha: Tensor  # [H, W]
     radii: Tensor  # [N] int, 0 = not rendered
-    means2d: Tensor  # [N, 2] (retains grad: its .grad after backward is the 2D-mean gradient)
-    absgrad: Tensor  # [N, 2] sum over pixels of |dL/dmeans2d| (filled by backward)
+    means2d: Tensor  # [N, 2] pixels (retains grad: its .grad after backward is the 2D-mean gradient)
+    absgrad: Tensor | None  # [N, 2] sum over pixels of |dL/dmeans2d|, filled by backward (CPU backend)
+
+    def absgrad_cpu(self) -> Tensor:
+        """[N, 2] sum over pixels of |dL/dmeans2d| on the CPU, once backward has run (the CPU
+        backend fills ``absgrad``; gsplat sets ``means2d.absgrad``)."""
+        if self.absgrad is not None:
+            return self.absgrad
+        g = getattr(self.means2d, "absgrad", None)
+        if g is None:
+            raise RuntimeError("RenderOutput.absgrad_cpu: call it after backward (gsplat sets means2d.absgrad then)")
+        return g.detach().reshape(-1, 2).cpu()
 
 
 def render(g: Gaussians, cam: Camera, sh_degree: int, background: Float[Tensor, "3"] | None = None,
            near: float = 0.01, far: float = 1e10, eps2d: float = 0.3, tile: int = 16,
-           backend: str = "cpu", fused: bool = True) -> RenderOutput:
+           backend: str = "cpu", fused: bool = True, device: str = "cuda") -> RenderOutput:
     """Render Gaussians ``g`` from ``cam``; colours from SH of degree ``sh_degree`` evaluated
     at the direction camera -> Gaussian. ``fused``: projection and SH in numba kernels (default);
-    False uses their PyTorch references (slower; also gives a gradient to ``cam.viewmat``)."""
+    False uses their PyTorch references (slower, for tests). ``device``: where the gsplat
+    backend rasterizes."""
     if backend == "gsplat":
-        return _render_gsplat(g, cam, sh_degree, background, near, far, eps2d, tile)
+        return _render_gsplat(g, cam, sh_degree, background, near, far, eps2d, tile, device)
     if backend != "cpu":
-        raise ConfigError(f"splat backend {backend!r} must be cpu or gsplat")
-    dirs = g.means - cam.center.to(g.means.dtype)
-    if fused and not cam.viewmat.requires_grad:
-        p = project_gaussians_fused(g.means, g.quats, g.scales, cam.viewmat, cam.K, cam.width, cam.height, near, far,
-                                    eps2d)
+        raise ConfigError(f"splat backend {backend!r} must be one of {BACKENDS}")
+    viewmat = torch.as_tensor(cam.w2c, dtype=g.means.dtype)
+    intr = cam.intrinsics
+    dirs = g.means - (-viewmat[:3, :3].T @ viewmat[:3, 3])  # camera centre -> Gaussian
+    if fused:
+        p = project_gaussians_fused(g.means, g.quats, g.scales, viewmat, intr, near, far, eps2d)
         colors = sh_to_color_fused(g.sh, dirs, sh_degree)
     else:
         covars = quat_scale_to_covar(g.quats, g.scales)
-        p = project_gaussians(g.means, covars, cam.viewmat, cam.K, cam.width, cam.height, near, far, eps2d)
+        p = project_gaussians(g.means, covars, viewmat, intr, near, far, eps2d)
         colors = sh_to_color(g.sh, dirs, sh_degree)
     means2d = p.means2d
     if means2d.requires_grad:
@@ -88,22 +91,31 @@ def render(g: Gaussians, cam: Camera, sh_degree: int, background: Float[Tensor, 
     return RenderOutput(rgb, depth, c.alpha, p.radii, means2d, absgrad)
 
 
-def _render_gsplat(g, cam, sh_degree, background, near, far, eps2d, tile) -> RenderOutput:
-    if not torch.cuda.is_available():
+def _render_gsplat(g: Gaussians, cam: Camera, sh_degree: int, background: Tensor | None, near: float, far: float,
+                   eps2d: float, tile: int, device: str) -> RenderOutput:
+    """gsplat 1.5's ``rasterization`` (classic mode, RGB + expected depth, absgrad) on
+    ``device``; the outputs are moved back to the Gaussians' device (gradients flow through
+    the copies), ``radii`` is the larger of gsplat's two per-axis radii."""
+    dev = torch.device(device)
+    if dev.type == "cuda" and not torch.cuda.is_available():
         raise ConfigError("splat backend gsplat needs CUDA, which this machine does not have; use backend: cpu")
     try:
         import gsplat
     except ImportError as e:
         raise ConfigError("splat backend gsplat: the gsplat package is not installed (pip install gsplat==1.5.3)") from e
-    fx, fy, cx, cy = cam.K
-    dev = torch.device("cuda")
+    home = g.means.device
+    fx, fy, cx, cy = cam.intrinsics.params
     Ks = torch.tensor([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=torch.float32, device=dev)[None]
-    bg = background.to(dev)[None] if background is not None else None
+    viewmats = torch.as_tensor(cam.w2c, dtype=torch.float32, device=dev)[None]
+    bg = None
+    if background is not None:  # gsplat composites the background into every channel, depth included
+        bg = torch.cat([background.to(dev, torch.float32), torch.zeros(1, device=dev)])[None]
     colors, alphas, meta = gsplat.rasterization(
-        g.means.to(dev), g.quats.to(dev), g.scales.to(dev), g.opacities.to(dev), g.sh.to(dev),
-        cam.viewmat.to(dev)[None].float(), Ks, cam.width, cam.height, near_plane=near, far_plane=far, eps2d=eps2d,
-        sh_degree=sh_degree, tile_size=tile, backgrounds=bg, render_mode="RGB+ED", rasterize_mode="classic",
-        absgrad=True, packed=False)
-    means2d = meta["means2d"]
-    return RenderOutput(colors[0, ..., :3], colors[0, ..., 3], alphas[0, ..., 0], meta["radii"][0].amax(-1),
-                        means2d[0] if means2d.dim() == 3 else means2d, torch.zeros(g.means.shape[0], 2, device=dev))
+        g.means.to(dev), g.quats.to(dev), g.scales.to(dev), g.opacities.to(dev), g.sh.to(dev), viewmats, Ks,
+        cam.width, cam.height, near_plane=near, far_plane=far, eps2d=eps2d, sh_degree=sh_degree, tile_size=tile,
+        backgrounds=bg, render_mode="RGB+ED", rasterize_mode="classic", absgrad=True, packed=False)
+    means2d = meta["means2d"]  # [1, N, 2]; gsplat fills means2d.absgrad in backward
+    radii = meta["radii"][0]
+    radii = radii.amax(-1) if radii.dim() == 2 else radii
+    return RenderOutput(colors[0, ..., :3].to(home), colors[0, ..., 3].to(home), alphas[0, ..., 0].to(home),
+                        radii.to(home), means2d, None)

@@ -1,63 +1,80 @@
 """Adaptive density control for mesh-anchored Gaussians (gsplat's Strategy shape; DRAWER's
 ``after_train`` / ``split_gaussians`` / ``dup_gaussians`` / ``cull_gaussians``, reference §1.7).
 
-The strategy keeps its running statistics, and edits the parameter rows and their Adam moments
-together, so ``face`` (the row's face index), every parameter and every optimizer state stay
-row-aligned (tested). Children of a split stay on their parent's face: their in-face position
-is moved in the face plane, never by world-space noise.
+As in gsplat, the strategy dataclass *is* the config (``appearance.strategy``; ``null`` turns
+density control off) and is never mutated: the running statistics live in the dict that
+:meth:`MeshAnchoredStrategy.initialize_state` returns. The strategy edits the parameter rows
+and their Adam moments together, so ``face`` (the row's face index), every parameter and every
+optimizer state stay row-aligned (tested). Children of a split stay on their parent's face:
+their in-face position is moved in the face plane, never by world-space noise.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import torch
 from torch import Tensor
 
+from drawer_lib.errors import ConfigError
 from drawer_lib.splat.anchored import AnchoredParams, FaceFrames
 
 
-@dataclass
+@dataclass(frozen=True)
 class MeshAnchoredStrategy:
-    """Thresholds (reference defaults scaled to a short CPU schedule by the config):
-    densify when the mean |2D-mean gradient| (x 0.5 max(H, W)) exceeds ``grad_thresh``; split
-    when the largest clipped scale > ``size_thresh`` (m), else duplicate; cull opacity <
-    ``cull_alpha``; never empty a face (face guard); reset opacities to <= ``reset_to`` every
-    ``reset_every`` steps."""
+    """Thresholds (reference defaults scaled to a short CPU schedule): densify when the mean
+    |2D-mean gradient| (x 0.5 max(H, W)) exceeds ``grad_thresh``; split (children with scales
+    / ``split_shrink``) when the largest clipped scale > ``size_thresh`` (m), else duplicate;
+    at most ``max_gaussians``; cull opacity < ``cull_alpha``, never emptying a face (face
+    guard); all every ``refine_every`` steps in [``refine_start``, ``refine_stop``). Opacities
+    are reset to <= ``reset_to`` every ``reset_every`` steps before ``refine_stop``."""
 
     refine_start: int = 200
     refine_every: int = 100
-    refine_stop: int = 1500
+    refine_stop: int = 1200
     reset_every: int = 1000
     grad_thresh: float = 0.0008
     size_thresh: float = 0.01
     cull_alpha: float = 0.05
     reset_to: float = 0.2
     split_shrink: float = 1.6
-    max_gaussians: int = 60_000
-    grad_sum: Tensor | None = field(default=None, repr=False)
-    count: Tensor | None = field(default=None, repr=False)
+    max_gaussians: int = 50_000
 
-    def update(self, absgrad: Tensor, radii: Tensor, image_size: int) -> None:
-        """Accumulate per-Gaussian 2D-mean gradient norms (pixels -> NDC-like units)."""
+    def __post_init__(self):
+        if self.refine_every < 1 or self.reset_every < 1:
+            raise ConfigError("appearance.strategy: refine_every and reset_every must be >= 1")
+        if not 0 < self.reset_to < 1 or not 0 <= self.cull_alpha < 1:
+            raise ConfigError("appearance.strategy: need 0 < reset_to < 1 and 0 <= cull_alpha < 1")
+        if self.split_shrink <= 1 or self.max_gaussians < 1:
+            raise ConfigError("appearance.strategy: need split_shrink > 1 and max_gaussians >= 1")
+
+    def initialize_state(self) -> dict[str, Tensor | None]:
+        """The running statistics: per-Gaussian sums of |2D-mean gradient| and view counts."""
+        return {"grad_sum": None, "count": None}
+
+    def step_post_backward(self, state: dict, absgrad: Tensor, radii: Tensor, image_size: int) -> None:
+        """Accumulate per-Gaussian 2D-mean gradient norms (pixels -> NDC-like units) of the
+        Gaussians the view rendered (``radii`` > 0)."""
         n = absgrad.shape[0]
-        if self.grad_sum is None or self.grad_sum.shape[0] != n:
-            self.grad_sum = torch.zeros(n, dtype=torch.float64)
-            self.count = torch.zeros(n, dtype=torch.float64)
+        if state["grad_sum"] is None or state["grad_sum"].shape[0] != n:
+            state["grad_sum"] = torch.zeros(n, dtype=torch.float64)
+            state["count"] = torch.zeros(n, dtype=torch.float64)
         vis = radii > 0
-        self.grad_sum[vis] += absgrad[vis].norm(dim=-1).double() * 0.5 * image_size
-        self.count[vis] += 1
+        state["grad_sum"][vis] += absgrad[vis].norm(dim=-1).double() * 0.5 * image_size
+        state["count"][vis] += 1
 
-    def step(self, step: int, p: AnchoredParams, frames: FaceFrames, scales: Tensor, opt: torch.optim.Adam,
-             gen: torch.Generator, allow_densify: bool = True, allow_split: bool = True) -> dict[str, int]:
-        """Run refinement at this step if due; edits ``p`` and ``opt`` in place. ``scales``:
-        the current clipped scales [N, 3]. Without ``allow_split`` (static Gaussians, whose
-        positions must stay at the face centroids) every densified Gaussian is duplicated."""
+    def step_post_optimizer(self, state: dict, step: int, p: AnchoredParams, frames: FaceFrames, scales: Tensor,
+                            opt: torch.optim.Adam, gen: torch.Generator, allow_densify: bool = True,
+                            allow_split: bool = True) -> dict[str, int]:
+        """Run refinement at this step if due; edits ``p``, ``opt`` and ``state`` in place.
+        ``scales``: the current clipped scales [N, 3]. Without ``allow_split`` (static
+        Gaussians, whose positions must stay at the face centroids) every densified Gaussian is
+        duplicated. Returns how many were split, duplicated and culled."""
         out = {"split": 0, "dup": 0, "culled": 0}
         if step > 0 and step % self.reset_every == 0 and step < self.refine_stop:
             self._reset_opacity(p, opt)
         if not (self.refine_start <= step < self.refine_stop and step % self.refine_every == 0):
             return out
-        if self.grad_sum is not None and allow_densify:
-            avg = self.grad_sum / self.count.clamp_min(1)
+        if state["grad_sum"] is not None and allow_densify:
+            avg = state["grad_sum"] / state["count"].clamp_min(1)
             high = avg > self.grad_thresh
             big = scales.detach().amax(-1) > self.size_thresh
             if not allow_split:
@@ -80,8 +97,8 @@ class MeshAnchoredStrategy:
             self._grow(p, opt, frames, scales, split, dup, gen)
         culled = self._cull(p, opt)
         out["culled"] = culled
-        self.grad_sum = None
-        self.count = None
+        state["grad_sum"] = None
+        state["count"] = None
         return out
 
     # -- row editing ----------------------------------------------------------------------------

@@ -6,19 +6,19 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 import trimesh
 
 from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
-from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, check_bounds, face_frames, init_anchored
+from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, bounds_violation, face_frames, init_anchored
 from drawer_lib.splat.config import AppearanceConfig
 from drawer_lib.splat.mesh_color import (colored_mesh_at_resolution, face_colors, mesh_depths, render_face_colored,
                                          to_tensor_images)
-from drawer_lib.splat.render import Camera, RenderOutput, render
-from drawer_lib.splat.strategy import MeshAnchoredStrategy
+from drawer_lib.splat.losses import appearance_losses, total_loss
+from drawer_lib.splat.render import RenderOutput, render
 
 EVAL_BG = np.array([0.149, 0.1647, 0.2157])  # DRAWER's evaluation background
 
@@ -30,12 +30,6 @@ def decimate(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
 
     out, _ = clean_mesh(mesh, CleanConfig(min_component_diag=0.0, target_faces=max_faces))
     return out
-
-
-def cameras(cap: Capture, frames: list[int]) -> list[Camera]:
-    it = cap.intrinsics
-    return [Camera(torch.tensor(cap.frames[i].w2c, dtype=torch.float32), (it.fx, it.fy, it.cx, it.cy), it.width,
-                   it.height) for i in frames]
 
 
 @dataclass
@@ -62,7 +56,7 @@ def prepare(cap: Capture, mesh: trimesh.Trimesh, cfg: AppearanceConfig) -> Scene
     it = cap.intrinsics
     w_tr = np.stack([cap.frames[i].w2c for i in cap.train])
     w_te = np.stack([cap.frames[i].w2c for i in cap.test])
-    return Scene(m, rc, cameras(cap, cap.train), cameras(cap, cap.test),
+    return Scene(m, rc, cap.cameras(cap.train), cap.cameras(cap.test),
                  to_tensor_images(np.stack([cap.image(i) for i in cap.train])),
                  to_tensor_images(np.stack([cap.image(i) for i in cap.test])),
                  torch.from_numpy(mesh_depths(rc, it, w_tr)), mesh_depths(rc, it, w_te))
@@ -109,11 +103,11 @@ def textured_mesh(cap: Capture, sc: Scene, cfg: AppearanceConfig, field=None) ->
                              "of a neural run); use texture_source: images for a TSDF")
         cols = field_colors(field, np.asarray(fine.triangles_center), np.asarray(fine.face_normals))
     else:
-        w_tr = np.stack([c.viewmat.numpy() for c in sc.train_cams]).astype(np.float64)
+        w_tr = np.stack([c.w2c for c in sc.train_cams])
         depth = mesh_depths(rc, it, w_tr)
         cols, cnt = face_colors(np.asarray(fine.triangles_center), sc.train_rgb.numpy(), it, w_tr, depth)
     bake_s = time.perf_counter() - t0
-    renders = torch.from_numpy(np.stack([render_face_colored(rc, cols, it, c.viewmat.numpy().astype(np.float64), EVAL_BG)
+    renders = torch.from_numpy(np.stack([render_face_colored(rc, cols, it, c.w2c, EVAL_BG)
                                          for c in sc.test_cams]))
     info = {"texture_faces": len(fine.faces), "texture_cell_m": cfg.texture_cell, "texture_source": cfg.texture_source,
             "faces_unseen": int((cnt == 0).sum()), "bake_s": round(bake_s, 3)}
@@ -161,13 +155,12 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
     if frames.A.shape[0] == 0:
         raise InputError("appearance: the mesh has no face with a non-zero area")
     it = cap.intrinsics
-    w_tr = np.stack([c.viewmat.numpy() for c in sc.train_cams]).astype(np.float64)
+    w_tr = np.stack([c.w2c for c in sc.train_cams])
     cols, _ = face_colors(frames.centroid.double().numpy(), sc.train_rgb.numpy(), it, w_tr, sc.train_mesh_depth.numpy())
     p = init_anchored(frames, torch.tensor(cols, dtype=torch.float32), cfg.sh_degree, cfg.init_opacity)
     opt = _optimizer(p, cfg)
-    s = cfg.strategy
-    strat = MeshAnchoredStrategy(**{k: v for k, v in vars(s).items() if k != "enabled"})
-    densify = s.enabled
+    strat = cfg.strategy
+    state = strat.initialize_state() if strat is not None else None
     w = cfg.losses
     n_img = len(sc.train_cams)
     size = max(it.width, it.height)
@@ -181,31 +174,22 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
         bg = torch.rand(3, generator=gen)
         deg = min(step // cfg.sh_every, cfg.sh_degree)
         out, scales = render_params(p, frames, cfg, sc.train_cams[k], deg, bg)
-        gt = sc.train_rgb[k]
-        x, y = out.rgb.permute(2, 0, 1)[None], gt.permute(2, 0, 1)[None]
-        loss = w.l1 * (out.rgb - gt).abs().mean() + w.dssim * (1 - ssim(x, y, y_stats=gt_stats[k])[0])
-        if w.alpha > 0:
-            loss = loss + w.alpha * F.relu(0.95 - out.alpha).mean()
-        if w.mesh_depth > 0:
-            md = sc.train_mesh_depth[k]
-            seen = md > 0
-            loss = loss + w.mesh_depth * (md[seen] - out.depth[seen]).abs().mean()
-        if w.aniso > 0 and step % 10 == 0:
-            s2 = scales[:, :2]
-            loss = loss + w.aniso * F.relu(s2.amax(-1) / s2.amin(-1).clamp_min(1e-12) - w.aniso_ratio).mean()
+        terms = appearance_losses(out, sc.train_rgb[k], scales, step, w, gt_stats[k], sc.train_mesh_depth[k])
+        loss = total_loss(terms, w)
         if not torch.isfinite(loss):
-            raise NonFiniteError(f"appearance: loss is {float(loss)} at step {step}")
+            bad = [name for name, v in terms.items() if not torch.isfinite(v)]
+            raise NonFiniteError(f"appearance: loss terms {bad} are not finite at step {step}")
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        if densify:
-            strat.update(out.absgrad, out.radii, size)
+        if strat is not None:
+            strat.step_post_backward(state, out.absgrad_cpu(), out.radii.cpu(), size)
         frac = min(step / max(cfg.steps - 1, 1), 1.0)
         for g in opt.param_groups:
             if g["name"] in ("means_2d", "elevate"):
                 g["lr"] = cfg.lr.position * (cfg.lr.position_final / cfg.lr.position) ** frac
         opt.step()
-        if densify:
-            r = strat.step(step, p, frames, scales, opt, gen, allow_split=not cfg.static)
+        if strat is not None:
+            r = strat.step_post_optimizer(state, step, p, frames, scales, opt, gen, allow_split=not cfg.static)
             for kk in counts:
                 counts[kk] += r[kk]
         train_s += time.perf_counter() - t0
@@ -228,9 +212,4 @@ def render_test(p: AnchoredParams, frames: FaceFrames, cfg: AppearanceConfig, sc
 
 def bounds_report(p: AnchoredParams, frames: FaceFrames, cfg: AppearanceConfig) -> str | None:
     """None when every Gaussian is within its face bounds, else the first violation."""
-    a = anchored_gaussians(p, frames, cfg.bounds, cfg.clip)
-    try:
-        check_bounds(a, p, frames, cfg.bounds)
-    except AssertionError as e:
-        return str(e)
-    return None
+    return bounds_violation(anchored_gaussians(p, frames, cfg.bounds, cfg.clip), p, frames, cfg.bounds)

@@ -11,6 +11,7 @@ from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture, Frame, split_every, write_transforms
 from drawer_lib.io.images import write_depth, write_json, write_rgb, write_u16
 from drawer_lib.io.manifest import Manifest
+from drawer_lib.paths import capture_name
 from drawer_lib.synth.camera_path import camera_path
 from drawer_lib.synth.config import DepthSensorConfig, DetectionsConfig, MonoConfig, RenderConfig, SynthConfig
 from drawer_lib.synth.gt import write_gt
@@ -60,8 +61,9 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
     km = build_model(layout, intr, sensors.render)
     poses_cv = camera_path(layout, cc, np.random.default_rng([synth.seed, 2]))
 
-    parts, mesh, _ = write_gt(layout, out / "gt")
-    (out / "gt" / "instances").mkdir(parents=True, exist_ok=True)
+    parts, mesh, _ = write_gt(layout, out / capture_name("gt"))
+    (out / capture_name("gt_instances")).mkdir(parents=True, exist_ok=True)
+    D = {k: capture_name(k) for k in ("images", "depth", "mono_depth", "mono_normal", "detections", "gt_instances")}
     rc = Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces))
     inst_of_entity = np.array([e.instance_id for e in layout.entities], np.uint16)
     detectables = _detectables(layout)
@@ -81,32 +83,32 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
                 raise FloatingPointError(f"{scene}: non-finite rendered depth in frame {stem}")
             w2c = invert_rigid(poses_cv[k])
             _, n_cam, _ = rc.depth_normals(intr, w2c)
-            write_rgb(out / "images" / f"{stem}.png", rgb)
-            fr = {"file_path": f"images/{stem}.png"}
+            fr = {"file_path": f"{D['images']}/{stem}.png"}
+            write_rgb(out / fr["file_path"], rgb)
             if dep_cfg.enabled:
-                zs = sensor_depth(z, n_cam, (intr.fx, intr.fy, intr.cx, intr.cy), dep_cfg, rng)
-                write_depth(out / "depth" / f"{stem}.png", zs, dep_cfg.unit_scale)
+                zs = sensor_depth(z, n_cam, intr, dep_cfg, rng)
+                fr["depth_file_path"] = f"{D['depth']}/{stem}.png"
+                write_depth(out / fr["depth_file_path"], zs, dep_cfg.unit_scale)
                 ok = zs > 0
                 depth_valid.append(float(ok.mean()))
                 if ok.any():
                     depth_err.append(np.abs(zs[ok] - z[ok]))
-                fr["depth_file_path"] = f"depth/{stem}.png"
             if mono_cfg.depth_enabled:
-                np.save(out / "mono_depth" / f"{stem}.npy", mono_depth(z, mono_cfg, rng))
-                fr["mono_depth_file_path"] = f"mono_depth/{stem}.npy"
+                fr["mono_depth_file_path"] = f"{D['mono_depth']}/{stem}.npy"
+                np.save(out / fr["mono_depth_file_path"], mono_depth(z, mono_cfg, rng))
             if mono_cfg.normal_enabled:
-                np.save(out / "mono_normal" / f"{stem}.npy", mono_normals(n_cam, mono_cfg, rng))
-                fr["mono_normal_file_path"] = f"mono_normal/{stem}.npy"
+                fr["mono_normal_file_path"] = f"{D['mono_normal']}/{stem}.npy"
+                np.save(out / fr["mono_normal_file_path"], mono_normals(n_cam, mono_cfg, rng))
             if det_cfg.enabled:
                 lab, dets, st = simulate_detections(ent, handle, detectables, det_cfg, rng)
-                write_u16(out / "detections" / f"{stem}.png", lab)
-                write_json(out / "detections" / f"{stem}.json", dets, indent=None)
+                fr["detections_path"] = f"{D['detections']}/{stem}.png"
+                write_u16(out / fr["detections_path"], lab)
+                write_json((out / fr["detections_path"]).with_suffix(".json"), dets, indent=None)
                 for f in ("candidates", "detected", "missed", "merged", "false"):
                     setattr(dstats, f, getattr(dstats, f) + getattr(st, f))
                 n_dets.append(len(dets))
-                fr["detections_path"] = f"detections/{stem}.png"
             inst = np.where(ent >= 0, inst_of_entity[np.maximum(ent, 0)], 0).astype(np.uint16)
-            write_u16(out / "gt" / "instances" / f"{stem}.png", inst)
+            write_u16(out / D["gt_instances"] / f"{stem}.png", inst)
             frames.append(Frame(fr["file_path"], c2w_gl, fr.get("depth_file_path"), fr.get("mono_depth_file_path"),
                                 fr.get("mono_normal_file_path"), fr.get("detections_path")))
     finally:

@@ -6,6 +6,7 @@ import numpy as np
 import trimesh
 
 from drawer_lib.io.parts import Axis, IgnoreBox, Part, PartsFile, write_parts
+from drawer_lib.paths import capture_name
 from drawer_lib.synth.layout import KitchenLayout
 from drawer_lib.synth.meshes import concat
 
@@ -57,11 +58,12 @@ def layout_mesh(layout: KitchenLayout) -> tuple[trimesh.Trimesh, np.ndarray]:
 
 
 def write_gt(layout: KitchenLayout, gt_dir: Path) -> tuple[PartsFile, trimesh.Trimesh, np.ndarray]:
-    """Write ``gt/parts.json``, ``gt/mesh.ply`` and ``gt/mesh_instances.npy`` (per-face ids)."""
+    """Write ``gt/parts.json``, ``gt/mesh.ply`` and ``gt/mesh_instances.npy`` (per-face ids) into
+    ``gt_dir`` (the capture's ``gt/``)."""
     gt_dir.mkdir(parents=True, exist_ok=True)
     parts = layout_parts(layout)
-    write_parts(gt_dir / "parts.json", parts)
+    write_parts(gt_dir.parent / capture_name("gt_parts"), parts)
     mesh, face_inst = layout_mesh(layout)
-    mesh.export(gt_dir / "mesh.ply")
-    np.save(gt_dir / "mesh_instances.npy", face_inst.astype(np.int32))
+    mesh.export(gt_dir.parent / capture_name("gt_mesh"))
+    np.save(gt_dir.parent / capture_name("gt_mesh_instances"), face_inst.astype(np.int32))
     return parts, mesh, face_inst

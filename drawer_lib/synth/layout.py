@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Front
 from drawer_lib.synth import textures as tex
 from drawer_lib.synth.config import BASE_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
@@ -223,7 +224,7 @@ def _handle(style: str, p: np.ndarray, along: np.ndarray, length: float, edge: s
         xl = sorted([x_e + sgn * 0.0015, x_e - sgn * lip])
         lipm = box_between([xl[0], y0, z0], [xl[1], y0 + 0.004, z1])
         return [plate, lipm]
-    raise ValueError(f"unknown handle style {style!r}")
+    raise ConfigError(f"unknown handle style {style!r}")
 
 
 class _Builder:
@@ -419,7 +420,7 @@ def _base_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
         strip = Rect(full.x0 + 0.02, full.x1 - 0.02, full.z1 - 0.09, full.z1 - 0.05, y)
         e.pieces.append(Piece(box_between([strip.x0, y - 0.001, strip.z0], [strip.x1, y + 0.002, strip.z1]), "glass", "front"))
     else:
-        raise ValueError(f"unknown base module type {kind!r} (known: {BASE_TYPES})")
+        raise ConfigError(f"unknown base module type {kind!r} (known: {BASE_TYPES})")
 
 
 def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
@@ -456,7 +457,7 @@ def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
         b.add_front("sliding", inner, mat, limit=travel, slide_dir=-1.0, handle_where="bottom-right",
                     handle_along="v", handle_len=0.128)
     else:
-        raise ValueError(f"unknown wall module type {kind!r} (known: {WALL_TYPES})")
+        raise ConfigError(f"unknown wall module type {kind!r} (known: {WALL_TYPES})")
 
 
 def _tall_unit(b: _Builder, x0: float, x1: float, top: float) -> None:
@@ -508,7 +509,7 @@ def _object_mesh(kind: str, mat_rng: np.random.Generator) -> tuple[list[tuple[UV
     if kind == "box":
         m = box_between([-0.05, -0.035, 0.0], [0.05, 0.035, 0.24])
         return [(m, "cardboard")], 0.07, 0.4
-    raise ValueError(kind)
+    raise ConfigError(f"unknown object kind {kind!r}")
 
 
 def _place_objects(b: _Builder, n: int, x_lo: float, x_hi: float, y_lo: float, y_hi: float, z: float,

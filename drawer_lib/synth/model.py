@@ -17,6 +17,7 @@ from drawer_lib.synth import gl  # noqa: F401  (must precede the mujoco import)
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from drawer_lib.errors import ConfigError  # noqa: E402
 from drawer_lib.geometry.camera import Intrinsics  # noqa: E402
 from drawer_lib.geometry.rotations import matrix_to_quat  # noqa: E402
 from drawer_lib.synth.config import RenderConfig  # noqa: E402
@@ -66,7 +67,7 @@ def build_model(layout: KitchenLayout, cam: Intrinsics, render: RenderConfig | N
     ``cam`` must have square pixels and a centred principal point (MuJoCo's pinhole)."""
     render = render or RenderConfig()
     if abs(cam.fx - cam.fy) > 1e-6 * cam.fx or abs(cam.cx - cam.width / 2) > 1e-6 or abs(cam.cy - cam.height / 2) > 1e-6:
-        raise ValueError("build_model: MuJoCo cameras need square pixels and a centred principal point")
+        raise ConfigError("build_model: MuJoCo cameras need square pixels and a centred principal point")
     spec = mujoco.MjSpec()
     spec.modelname = f"kitchen_{layout.seed}"
     spec.compiler.degree = False

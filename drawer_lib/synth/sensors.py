@@ -10,6 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Intrinsics, pixel_dirs
 from drawer_lib.synth.config import DepthSensorConfig, DetectionsConfig, MonoConfig
 
 
@@ -24,12 +26,6 @@ def smooth_field(rng: np.random.Generator, H: int, W: int, max_cycles: float = 1
         f += np.cos(2 * np.pi * k * (np.cos(a) * u + np.sin(a) * v) + rng.uniform(0, 2 * np.pi))
     m = np.abs(f).max()
     return f / m if m > 0 else f
-
-
-def _ray_dirs_cam(H: int, W: int, fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
-    j, i = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
-    d = np.stack([(j - cx) / fx, (i - cy) / fy, np.ones_like(j)], -1)
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def depth_edges(z: np.ndarray, rel_jump: float) -> np.ndarray:
@@ -48,12 +44,12 @@ def depth_edges(z: np.ndarray, rel_jump: float) -> np.ndarray:
     return e
 
 
-def sensor_depth(z: np.ndarray, normals_cam: np.ndarray, K: tuple[float, float, float, float],
+def sensor_depth(z: np.ndarray, normals_cam: np.ndarray, intr: Intrinsics,
                  cfg: DepthSensorConfig, rng: np.random.Generator) -> np.ndarray:
     """Metric z-depth as a depth camera measures it, float32 [H, W], 0 = invalid.
 
     ``z``: exact z-depth (0 where nothing was hit); ``normals_cam``: camera-facing unit normals
-    in the OpenCV camera frame; ``K`` = (fx, fy, cx, cy) in the library pixel convention.
+    in the OpenCV camera frame; ``intr``: the camera's intrinsics (of the [H, W] image).
     """
     z = np.asarray(z, np.float64)
     valid = np.isfinite(z) & (z > 0)
@@ -61,7 +57,7 @@ def sensor_depth(z: np.ndarray, normals_cam: np.ndarray, K: tuple[float, float, 
         return np.where(valid, z, 0.0).astype(np.float32)
     H, W = z.shape
     valid &= (z >= cfg.min_range) & (z <= cfg.max_range)
-    d = _ray_dirs_cam(H, W, *K)
+    d = pixel_dirs(intr, normalize=True)
     cos_inc = np.abs(np.einsum("hwc,hwc->hw", d, normals_cam))
     inc = np.rad2deg(np.arccos(np.clip(cos_inc, 0.0, 1.0)))
     band = max(cfg.grazing_band_deg, 1e-6)
@@ -87,7 +83,7 @@ def mono_depth(z: np.ndarray, cfg: MonoConfig, rng: np.random.Generator) -> np.n
     z = np.asarray(z, np.float64)
     hole = ~(np.isfinite(z) & (z > 0))
     if hole.all():
-        raise ValueError("mono_depth: frame has no valid depth")
+        raise InputError("mono_depth: the frame sees no surface (no valid depth)")
     if hole.any():
         idx = ndimage.distance_transform_edt(hole, return_distances=False, return_indices=True)
         z = z[tuple(idx)]

@@ -147,7 +147,7 @@ def test_to_typed_errors_name_the_key():
 
 
 def test_scene_source_must_have_its_block():
-    with pytest.raises(ConfigError, match="'video' block is null"):
+    with pytest.raises(ConfigError, match="no 'video' block"):
         SceneConfig(source="video")
     with pytest.raises(ConfigError, match="not one of"):
         SceneConfig(source="lidar")

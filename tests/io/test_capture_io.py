@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from drawer_lib.errors import CaptureError
 from drawer_lib.io.capture import Capture, load_capture, split_every, write_transforms
-from drawer_lib.io.images import CaptureError, read_depth, write_depth
+from drawer_lib.io.images import read_depth, write_depth
 
 
 @pytest.fixture

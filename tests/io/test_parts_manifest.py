@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from drawer_lib.io.images import CaptureError
+from drawer_lib.errors import CaptureError
 from drawer_lib.io.manifest import Manifest, read_manifest, write_manifest
 from drawer_lib.io.parts import parse_parts, read_parts, write_parts
 

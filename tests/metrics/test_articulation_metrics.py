@@ -4,6 +4,7 @@ ignore boxes, precision / recall, EA-score and its clipping."""
 import numpy as np
 import pytest
 
+from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.io.parts import Axis, Front, IgnoreBox, Part, PartsFile
 from drawer_lib.metrics.articulation import (articulation_metrics, clip_convex, convex_iou, ea_pair, front_overlap,
                                              match_parts, project_segment)
@@ -71,15 +72,14 @@ def test_ea_score_extremes():
 
 
 def test_projection_clips_to_near_plane_and_image():
-    w2c = np.eye(4)
-    K, W, H = (100.0, 100.0, 50.0, 50.0), 100, 100
+    cam = Camera(Intrinsics(100.0, 100.0, 50.0, 50.0, 100, 100), np.eye(4))
     seg = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 5.0]])
-    p = project_segment(seg, w2c, K, W, H)
+    p = project_segment(seg, cam)
     assert p is not None and np.allclose(p, [[0.5, 0.5], [0.5, 0.5]])  # along the optical axis: a point
     seg = np.array([[-5.0, 0.0, 1.0], [5.0, 0.0, 1.0]])
-    p = project_segment(seg, w2c, K, W, H)
+    p = project_segment(seg, cam)
     assert np.allclose(np.sort(p[:, 0]), [0.0, 1.0]) and np.allclose(p[:, 1], 0.5)  # clipped to the image
-    assert project_segment(np.array([[0, 0, -1.0], [0, 0, -2.0]]), w2c, K, W, H) is None  # behind
+    assert project_segment(np.array([[0, 0, -1.0], [0, 0, -2.0]]), cam) is None  # behind
     seg = np.array([[0.0, 0.1, -1.0], [0.0, 0.1, 1.0]])  # crosses the camera plane: finite, clipped
-    p = project_segment(seg, w2c, K, W, H)
+    p = project_segment(seg, cam)
     assert p is not None and np.all(np.isfinite(p))

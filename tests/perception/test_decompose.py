@@ -8,28 +8,28 @@ import numpy as np
 import pytest
 import trimesh
 
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.pipeline import run_articulate
 from drawer_lib.io.capture import load_capture
-from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import articulation_metrics
-from drawer_lib.perception.config import ArticulateConfig, DecomposeConfig
+from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.perception.decompose import (MaskRecord, absorb_handles, cooccurrence_graph, face_geometry,
                                              louvain_candidates, tolerant_ious)
+from drawer_lib.perception.pipeline import load_segments, run_decompose
 from drawer_lib.runner import StageRun
-from drawer_lib.perception.pipeline import load_segments, run_articulate, run_decompose, eval_views
 
 
 def pipeline(cap_dir, out, dcfg=DecomposeConfig(), acfg=ArticulateConfig()):
     cap = load_capture(cap_dir)
-    man = read_manifest(cap_dir / "manifest.json")
     d = out / "decompose"
     d.mkdir(parents=True)
-    info = run_decompose(dcfg, cap, man, cap_dir / "gt" / "mesh.ply", StageRun("decompose", d, d, 0), d)
+    info = run_decompose(dcfg, cap, cap_dir / "gt" / "mesh.ply", StageRun("decompose", d, d, 0))
     a = out / "articulate"
     a.mkdir()
-    run_articulate(acfg, cap, d, a)
+    run_articulate(acfg, cap, d, StageRun("articulate", a, a, 0))
     res, details = articulation_metrics(read_parts(a / "parts.json"), read_parts(cap_dir / "gt" / "parts.json"),
-                                        eval_views(cap))
+                                        cap.cameras(cap.test))
     return info, res, details
 
 
@@ -229,39 +229,3 @@ def test_tolerant_iou_ignores_a_band_at_the_border_and_matches_a_slow_reference(
     thin[8:10, 5:35] = True
     lab2 = np.where(thin, 1, 0)
     assert tolerant_ious(thin, lab2, np.bincount(lab2.ravel(), minlength=2), 2)[1] == pytest.approx(1.0)
-
-
-def test_louvain_is_bounded_on_the_networkx_round_off_cycle():
-    """networkx <= 3.6.1 loops forever on this graph at resolution 1 with seed 123 (networkx
-    issue #8739): the bounded run gives up on that seed after the timeout and takes the next."""
-    import time
-
-    import networkx as nx
-
-    from drawer_lib.perception.decompose import louvain_bounded
-
-    G = nx.Graph([(0, 1), (0, 2), (0, 5), (0, 6), (1, 2), (1, 4), (2, 3), (2, 5), (2, 6), (3, 4)])
-    t = time.perf_counter()
-    coms, used = louvain_bounded(G, 1.0, 123, timeout_s=0.5)
-    assert time.perf_counter() - t < 10
-    assert coms is not None and sorted(set().union(*coms)) == list(range(7))
-    if nx.__version__ == "3.6.1":  # the version pinned here still has the cycle
-        assert used >= 2
-
-
-
-def test_louvain_that_never_ends_is_reported_not_waited_for(monkeypatch):
-    import time
-
-    import networkx as nx
-
-    from drawer_lib.perception.decompose import louvain_bounded
-
-    def forever(*args, **kwargs):
-        while True:
-            pass
-
-    monkeypatch.setattr(nx.community, "louvain_communities", forever)
-    t = time.perf_counter()
-    assert louvain_bounded(nx.path_graph(3), 1.0, 0, timeout_s=0.2, tries=2) == (None, 2)
-    assert time.perf_counter() - t < 5

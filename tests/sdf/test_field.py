@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 import torch
 
+from drawer_lib.errors import ConfigError
+from drawer_lib.io.capture import load_capture
 from drawer_lib.sdf import losses as L
 from drawer_lib.sdf.encoding import MultiResGrid
 from drawer_lib.sdf.field import SDFField
 from drawer_lib.sdf.priors import make_estimator
-from drawer_lib.errors import ConfigError
-from drawer_lib.io.capture import load_capture
 
 
 def grid(backend, hashed=False, seed=0):

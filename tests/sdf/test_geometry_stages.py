@@ -71,7 +71,7 @@ def test_tsdf_and_mono_variants_and_the_table(project):
 def test_bad_input_is_named_and_leaves_no_output(tmp_path, exact_capture):
     # no capture at all
     r = run("sdf", tmp_path)
-    assert r.returncode == 2 and "manifest.json" in r.stderr and "error:" in r.stderr
+    assert r.returncode == 2 and "transforms.json: file is missing" in r.stderr and "error:" in r.stderr
     assert not (tmp_path / "out" / "kitchen_tiny" / "sdf").exists()
     # a capture with a missing image
     cap = tmp_path / "out" / "kitchen_tiny" / "capture"

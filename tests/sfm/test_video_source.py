@@ -6,8 +6,8 @@ import pytest
 from helpers import load_scene, render_capture, sensor_cfg
 
 from drawer_lib.capture.config import SceneConfig, VideoSource
+from drawer_lib.errors import CaptureError
 from drawer_lib.io.capture import load_capture
-from drawer_lib.io.images import CaptureError
 from drawer_lib.sfm.video import drop_blurriest, read_frames, write_video
 
 

@@ -4,6 +4,7 @@ random cotangents, gradcheck), including culled and clamped cases."""
 import pytest
 import torch
 
+from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.splat.project import project_gaussians, project_gaussians_fused, quat_scale_to_covar
 from drawer_lib.splat.sh import sh_to_color, sh_to_color_fused
 
@@ -28,7 +29,7 @@ def viewmat(dtype):
     return V
 
 
-K = (60.0, 64.0, 33.0, 23.5)
+K = Intrinsics(60.0, 64.0, 33.0, 23.5, 64, 48)
 
 
 @pytest.mark.parametrize("dtype,tol", [(torch.float64, 1e-9), (torch.float32, 2e-4)])
@@ -37,8 +38,8 @@ def test_fused_projection_equals_reference(dtype, tol):
     V = viewmat(dtype)
     a = [t.clone().requires_grad_(True) for t in (means, quats, scales)]
     b = [t.clone().requires_grad_(True) for t in (means, quats, scales)]
-    pf = project_gaussians_fused(*a, V, K, 64, 48)
-    pr = project_gaussians(b[0], quat_scale_to_covar(b[1], b[2]), V, K, 64, 48)
+    pf = project_gaussians_fused(*a, V, K)
+    pr = project_gaussians(b[0], quat_scale_to_covar(b[1], b[2]), V, K)
     assert torch.equal(pf.radii, pr.radii)
     n_vis = int((pr.radii > 0).sum())
     assert 50 < n_vis < 400  # the scene has culled and visible Gaussians
@@ -57,7 +58,7 @@ def test_fused_projection_gradcheck():
     means[:, 2] = means[:, 2].abs() + 1.0
     V = viewmat(torch.float64)
     args = tuple(t.clone().requires_grad_(True) for t in (means, quats, scales))
-    fn = lambda m, q, s: (lambda p: (p.means2d, p.conics, p.depths))(project_gaussians_fused(m, q, s, V, K, 64, 48))  # noqa: E731
+    fn = lambda m, q, s: (lambda p: (p.means2d, p.conics, p.depths))(project_gaussians_fused(m, q, s, V, K))  # noqa: E731
     assert torch.autograd.gradcheck(fn, args, eps=1e-7, atol=1e-5, rtol=1e-4)
 
 

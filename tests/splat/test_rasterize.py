@@ -6,6 +6,7 @@ import pytest
 import torch
 from reference import composite_reference
 
+from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.splat.project import project_gaussians, quat_scale_to_covar
 from drawer_lib.splat.rasterize import composite
 
@@ -24,8 +25,8 @@ def random_scene(n=40, dtype=torch.float64, seed=0, scale=(0.05, 0.4)):
 
 
 def project(means, quats, scales, w=W, h=H):
-    K = (20.0 * w / 24, 20.0 * w / 24, w / 2, h / 2)
-    return project_gaussians(means, quat_scale_to_covar(quats, scales), torch.eye(4, dtype=means.dtype), K, w, h)
+    K = Intrinsics(20.0 * w / 24, 20.0 * w / 24, w / 2, h / 2, w, h)
+    return project_gaussians(means, quat_scale_to_covar(quats, scales), torch.eye(4, dtype=means.dtype), K)
 
 
 def inputs(dtype=torch.float64, seed=0, n=40):
@@ -71,10 +72,10 @@ def test_projected_covariance_matches_monte_carlo():
     quat = torch.tensor([[0.9, 0.2, -0.3, 0.1]], dtype=torch.float64)
     scale = torch.tensor([[0.02, 0.05, 0.01]], dtype=torch.float64)
     cov = quat_scale_to_covar(quat, scale)
-    K = (200.0, 210.0, 64.0, 48.0)
-    p = project_gaussians(mean, cov, torch.eye(4, dtype=torch.float64), K, 128, 96, eps2d=0.0)
+    K = Intrinsics(200.0, 210.0, 64.0, 48.0, 128, 96)
+    p = project_gaussians(mean, cov, torch.eye(4, dtype=torch.float64), K, eps2d=0.0)
     x = mean + torch.randn(400_000, 3, dtype=torch.float64) @ torch.linalg.cholesky(cov[0]).T
-    uv = torch.stack([K[0] * x[:, 0] / x[:, 2] + K[2], K[1] * x[:, 1] / x[:, 2] + K[3]], -1)
+    uv = torch.stack([K.fx * x[:, 0] / x[:, 2] + K.cx, K.fy * x[:, 1] / x[:, 2] + K.cy], -1)
     emp = torch.cov(uv.T)
     torch.testing.assert_close(p.cov2d[0], emp, rtol=0.02, atol=0.02 * float(emp.abs().max()))
     torch.testing.assert_close(p.means2d[0], uv.mean(0), rtol=0, atol=0.05)
@@ -95,14 +96,14 @@ def test_covariance_from_quat_and_scale():
 # --- extreme cases through the whole renderer ------------------------------------------------
 
 def _render(means, scales, opac, quats=None, dtype=torch.float64):
-    from drawer_lib.splat.render import Camera, Gaussians, render
+    from drawer_lib.splat.render import Gaussians, render
 
     n = means.shape[0]
     quats = torch.tensor([[1.0, 0, 0, 0]], dtype=dtype).repeat(n, 1) if quats is None else quats
     sh = torch.rand(n, 16, 3, dtype=dtype, generator=torch.Generator().manual_seed(0)) - 0.5
     params = [t.clone().requires_grad_(True) for t in (means, quats, scales, opac, sh)]
     g = Gaussians(*params)
-    cam = Camera(torch.eye(4, dtype=dtype), (40.0, 40.0, 24.0, 18.0), 48, 36)
+    cam = Camera(Intrinsics(40.0, 40.0, 24.0, 18.0, 48, 36), np.eye(4))
     out = render(g, cam, sh_degree=3, background=torch.tensor([0.1, 0.2, 0.3], dtype=dtype))
     loss = out.rgb.sum() + out.depth.sum() + out.alpha.sum()
     loss.backward()
@@ -147,12 +148,12 @@ def test_all_transparent_scene_shows_the_background():
 
 
 def test_render_matches_projection_plus_reference_and_reports_radii_and_absgrad():
-    from drawer_lib.splat.render import Camera, Gaussians, render
+    from drawer_lib.splat.render import Gaussians, render
     from drawer_lib.splat.sh import sh_to_color
 
     means, quats, scales, opac, _ = random_scene(30, torch.float64, seed=5)
     sh = torch.randn(30, 4, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(2)) * 0.3
-    cam = Camera(torch.eye(4, dtype=torch.float64), (20.0, 20.0, 12.0, 9.0), W, H)
+    cam = Camera(Intrinsics(20.0, 20.0, 12.0, 9.0, W, H), np.eye(4))
     g = Gaussians(means, quats, scales, opac, sh)
     out = render(g, cam, sh_degree=1)
     ref_out = render(g, cam, sh_degree=1, fused=False)
@@ -178,27 +179,3 @@ def test_bad_shapes_are_named():
         composite(xs[0], xs[1][:, :2], *xs[2:], radii, W, H)
     with pytest.raises(TypeError, match="dtype"):
         composite(xs[0], xs[1], xs[2].float(), *xs[3:], radii, W, H)
-
-
-def test_gsplat_backend_refuses_without_cuda():
-    from drawer_lib.errors import ConfigError
-    from drawer_lib.splat.render import Camera, Gaussians, render
-
-    if torch.cuda.is_available():
-        pytest.skip("CUDA present: covered by test_gsplat_backend_matches_cpu")
-    means, quats, scales, opac, _ = random_scene(5, torch.float32)
-    g = Gaussians(means, quats, scales, opac, torch.zeros(5, 1, 3))
-    with pytest.raises(ConfigError, match="CUDA"):
-        render(g, Camera(torch.eye(4), (20.0, 20.0, 12.0, 9.0), W, H), 0, backend="gsplat")
-
-
-@pytest.mark.skipif(not torch.cuda.is_available(), reason="the gsplat backend needs CUDA")
-def test_gsplat_backend_matches_cpu():
-    from drawer_lib.splat.render import Camera, Gaussians, render
-
-    means, quats, scales, opac, _ = random_scene(200, torch.float32)
-    sh = torch.rand(200, 16, 3) - 0.5
-    g = Gaussians(means, quats, scales, opac, sh)
-    cam = Camera(torch.eye(4), (20.0, 20.0, 12.0, 9.0), W, H)
-    a, b = render(g, cam, 3), render(g, cam, 3, backend="gsplat")
-    torch.testing.assert_close(b.rgb.cpu(), a.rgb, rtol=1e-3, atol=1e-3)

@@ -44,11 +44,12 @@ def test_split_and_dup_keep_rows_aligned_and_children_on_the_parent_face():
     n = p.face.shape[0]
     absgrad = torch.zeros(n, 2)
     absgrad[[0, 2, 4]] = 1.0  # high gradient
-    s.update(absgrad, torch.ones(n, dtype=torch.int32), 100)
+    state = s.initialize_state()
+    s.step_post_backward(state, absgrad, torch.ones(n, dtype=torch.int32), 100)
     scales = torch.full((n, 3), 0.01)
     scales[[0, 2]] = 0.2  # big -> split; 4 small -> dup
     old_faces = p.face.clone()
-    out = s.step(1, p, fr, scales, opt, torch.Generator().manual_seed(0))
+    out = s.step_post_optimizer(state, 1, p, fr, scales, opt, torch.Generator().manual_seed(0))
     assert out["split"] == 2 and out["dup"] == 1
     assert p.face.shape[0] == n - 2 + 4 + 1
     rows_aligned(p, opt)
@@ -65,9 +66,10 @@ def test_static_gaussians_are_duplicated_not_split():
     fr, p, opt = setup(frozen=("means_2d", "elevate"))  # static: positions are not optimised
     s = MeshAnchoredStrategy(refine_start=0, refine_every=1, refine_stop=10, size_thresh=0.05)
     n = p.face.shape[0]
-    s.update(torch.ones(n, 2), torch.ones(n, dtype=torch.int32), 100)
+    state = s.initialize_state()
+    s.step_post_backward(state, torch.ones(n, 2), torch.ones(n, dtype=torch.int32), 100)
     pos = p.means_2d.detach().clone()
-    out = s.step(1, p, fr, torch.full((n, 3), 0.2), opt, torch.Generator(), allow_split=False)
+    out = s.step_post_optimizer(state, 1, p, fr, torch.full((n, 3), 0.2), opt, torch.Generator(), allow_split=False)
     assert out["split"] == 0 and out["dup"] == n
     assert torch.equal(p.means_2d.detach()[n:], pos)  # copies stay where the originals are
     rows_aligned(p, opt)
@@ -82,11 +84,12 @@ def test_cull_with_face_guard_and_opacity_reset():
         p.opacity_logit[:] = 3.0
         p.opacity_logit[1] = -5.0  # face 1's only Gaussian: kept by the guard
     # give face 2 a second, transparent Gaussian by duplication, then cull it
-    s.update(torch.zeros(n, 2), torch.ones(n, dtype=torch.int32), 100)
-    out = s.step(1, p, fr, torch.full((n, 3), 0.01), opt, torch.Generator())
+    state = s.initialize_state()
+    s.step_post_backward(state, torch.zeros(n, 2), torch.ones(n, dtype=torch.int32), 100)
+    out = s.step_post_optimizer(state, 1, p, fr, torch.full((n, 3), 0.01), opt, torch.Generator())
     assert out["culled"] == 0 and p.face.shape[0] == n
     rows_aligned(p, opt)
-    s.step(5, p, fr, torch.full((n, 3), 0.01), opt, torch.Generator())  # reset step
+    s.step_post_optimizer(state, 5, p, fr, torch.full((n, 3), 0.01), opt, torch.Generator())  # reset step
     assert torch.all(torch.sigmoid(p.opacity_logit.detach()) <= 0.2 + 1e-6)
     assert torch.all(opt.state[p.opacity_logit]["exp_avg"] == 0)
 
@@ -99,11 +102,37 @@ def test_cull_removes_a_transparent_gaussian_when_its_face_keeps_another():
         p.opacity_logit[:] = 3.0
     ag = torch.zeros(n, 2)
     ag[0] = 1.0
-    s.update(ag, torch.ones(n, dtype=torch.int32), 100)
-    s.step(1, p, fr, torch.full((n, 3), 0.01), opt, torch.Generator())  # duplicates row 0 (face 0)
+    state = s.initialize_state()
+    s.step_post_backward(state, ag, torch.ones(n, dtype=torch.int32), 100)
+    s.step_post_optimizer(state, 1, p, fr, torch.full((n, 3), 0.01), opt, torch.Generator())  # duplicates row 0 (face 0)
     assert p.face.tolist().count(0) == 2
     with torch.no_grad():
         p.opacity_logit[-1] = -5.0
-    out = s.step(2, p, fr, torch.full((n + 1, 3), 0.01), opt, torch.Generator())
+    out = s.step_post_optimizer(state, 2, p, fr, torch.full((n + 1, 3), 0.01), opt, torch.Generator())
     assert out["culled"] == 1 and p.face.tolist().count(0) == 1
     rows_aligned(p, opt)
+
+
+def test_strategy_is_the_config_and_state_lives_apart():
+    """gsplat's pattern: the frozen dataclass is the config value, the running statistics come
+    from initialize_state(); every knob (reset_to, split_shrink included) is settable from the
+    params, and `strategy: null` turns density control off."""
+    import dataclasses
+
+    import pytest
+
+    from drawer_lib.config.typed import to_typed
+    from drawer_lib.errors import ConfigError
+    from drawer_lib.splat.config import AppearanceConfig
+
+    s = MeshAnchoredStrategy()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.reset_to = 0.5
+    a, b = s.initialize_state(), s.initialize_state()
+    s.step_post_backward(a, torch.ones(3, 2), torch.ones(3, dtype=torch.int32), 10)
+    assert a["grad_sum"] is not None and b["grad_sum"] is None  # states are independent
+    cfg = to_typed(AppearanceConfig, {"strategy": {"reset_to": 0.3, "split_shrink": 2.0}}, "appearance", strict=False)
+    assert cfg.strategy.reset_to == 0.3 and cfg.strategy.split_shrink == 2.0 and cfg.strategy.refine_every == 100
+    assert to_typed(AppearanceConfig, {"strategy": None}, "appearance", strict=False).strategy is None
+    with pytest.raises(ConfigError, match="split_shrink"):
+        MeshAnchoredStrategy(split_shrink=1.0)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from drawer_lib.geometry.camera import Intrinsics, pixel_dirs
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.images import read_u16
@@ -20,7 +21,7 @@ from drawer_lib.synth.sensors import (
     simulate_detections,
 )
 
-K = (50.0, 50.0, 32.0, 24.0)
+K = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
 
 
 def plane(z0=2.0, H=48, W=64):
@@ -41,7 +42,7 @@ def test_depth_noise_follows_the_axial_model(rng):
     cfg = DepthSensorConfig(dropout=0.0)
     for z0 in (1.0, 3.0):
         z, n = plane(z0, 200, 200)
-        out = sensor_depth(z, n, (200.0, 200.0, 100.0, 100.0), cfg, rng)
+        out = sensor_depth(z, n, Intrinsics(200.0, 200.0, 100.0, 100.0, 200, 200), cfg, rng)
         ok = out > 0
         assert ok.mean() > 0.99
         want = cfg.sigma_base + cfg.sigma_quad * (z0 - cfg.z_ref) ** 2
@@ -54,8 +55,7 @@ def test_depth_holes_at_grazing_angles_edges_and_range(rng):
     H, W = 48, 64
     z, n = plane(2.0, H, W)
     # a strip seen edge-on: its normals are perpendicular to the viewing rays
-    j, i = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
-    d = np.stack([(j - K[2]) / K[0], (i - K[3]) / K[1], np.ones_like(j)], -1)
+    d = pixel_dirs(K)
     side = np.cross(d, [0.0, 1.0, 0.0])
     n[:, :10] = (side / np.linalg.norm(side, axis=-1, keepdims=True))[:, :10]
     z[:, 40:] = 3.0  # a depth step at column 40

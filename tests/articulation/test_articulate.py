@@ -6,12 +6,18 @@ import numpy as np
 import pytest
 import trimesh
 
-from drawer_lib.errors import ConfigError
-from drawer_lib.perception.articulate import (assign_handles, decide, describe_handle, get_estimator,
-                                              handle_candidates, handle_clusters, infer_parts, refine_with_masks,
-                                              resolve_stacked_pulls, share_edges)
-from drawer_lib.perception.config import ArticulateConfig
+from drawer_lib.articulation.config import ArticulateConfig, FrontsConfig, HandlesConfig, TypesConfig
+from drawer_lib.articulation.estimators import get_estimator
+from drawer_lib.articulation.fronts import refine_with_masks, share_edges
+from drawer_lib.articulation.handles import (describe_handle, handle_candidates, handle_clusters, heaviest,
+                                             resolve_stacked_pulls)
+from drawer_lib.articulation.infer import infer_parts
+from drawer_lib.articulation.joints import decide
+from drawer_lib.errors import ConfigError, InputError
+from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.perception.decompose import Segment, face_geometry
+
+HC = HandlesConfig()
 
 CAMS = np.array([[0.3, -2.5, 1.0], [-0.5, -2.0, 1.2], [1.0, -2.2, 0.8]])
 X0, X1, Z0, Z1, Y = 0.0, 0.5, 0.1, 0.8, -0.6   # the front rectangle (m)
@@ -95,7 +101,7 @@ def test_top_handle_is_a_drawer_unless_the_labels_say_door():
     assert p.extra["family"] == "drawer"
     (p,), _ = run("top", labels={"door": 9, "drawer": 2})
     assert p.extra["family"] == "flap" and p.extra["hinge"] == "bottom"
-    (p,), _ = run("top", labels={"door": 9}, cfg=ArticulateConfig(use_labels=False))
+    (p,), _ = run("top", labels={"door": 9}, cfg=ArticulateConfig(types=TypesConfig(use_labels=False)))
     assert p.extra["family"] == "drawer"  # labels are hints only, and can be switched off
 
 
@@ -122,7 +128,7 @@ def test_handles_between_two_fronts_go_to_the_one_they_reach_into():
     edge_pull_lower = np.array([0.25, Y - 0.01, 0.475]) + g.normal(0, 0.003, (20, 3))  # at lower's top edge
     pts = np.concatenate([own_upper, edge_pull_lower])
     assert len(handle_clusters(pts, 0.015, 6)) == 2
-    got = assign_handles([upper, lower], pts, ArticulateConfig(), 0.015, 6)
+    got = heaviest(handle_candidates([upper, lower], pts, HC, 0.015, 6))
     assert np.allclose(got[0].mean(0), own_upper.mean(0)) and np.allclose(got[1].mean(0), edge_pull_lower.mean(0))
 
 
@@ -146,17 +152,16 @@ def test_mask_fringe_on_a_neighbour_weighs_less_than_the_fronts_own_pull():
     other = strip(0.503, 0.53, 50)  # the right door's pull on its own side
     pts = np.concatenate([own, fringe, other])
     w = np.concatenate([np.full(40, 0.6), np.full(60, 0.15), np.full(50, 0.6)])
-    cfg = ArticulateConfig()
-    by_count = assign_handles([left, right], pts, cfg, 0.015, 3)
-    by_rate = assign_handles([left, right], pts, cfg, 0.015, 3, weights=w)
+    by_count = heaviest(handle_candidates([left, right], pts, HC, 0.015, 3))
+    by_rate = heaviest(handle_candidates([left, right], pts, HC, 0.015, 3, weights=w))
     assert by_count[0].mean(0)[0] > 0.45  # the trap the weights avoid
     assert by_rate[0].mean(0)[0] < 0.05 and by_rate[1].mean(0)[0] > 0.5
-    h = describe_handle(left, by_rate[0], "masks")
-    assert h.a_u < 0.1 and decide(h, {}, cfg).hinge == "right"
+    h = describe_handle(left, by_rate[0], "masks", HC)
+    assert h.a_u < 0.1 and decide(h, {}, TypesConfig()).hinge == "right"
     with pytest.raises(ValueError, match="weights"):
-        assign_handles([left, right], pts, cfg, 0.015, 3, weights=-w)
-    with pytest.raises(ConfigError, match="handle_evidence"):
-        ArticulateConfig(handle_evidence="votes")
+        handle_candidates([left, right], pts, HC, 0.015, 3, weights=-w)
+    with pytest.raises(ConfigError, match="evidence"):
+        HandlesConfig(evidence="votes")
 
 
 def test_a_pull_between_stacked_fronts_goes_to_the_lower_one():
@@ -176,37 +181,37 @@ def test_a_pull_between_stacked_fronts_goes_to_the_lower_one():
     smear = bar(0.505, 0.53, 75)  # on the upper front, above the gap
     own_lower = bar(0.47, 0.497, 30)  # the lower front's pull below the gap
     pts = np.concatenate([own_upper, smear, own_lower])
-    cfg = ArticulateConfig()
+    cfg, tc = HC, TypesConfig()
     R = 0.04  # the linkage radius infer_parts uses on a mesh of ~3 cm faces (1.5 x the spacing)
     cands = handle_candidates([upper, lower], pts, cfg, R, 3)
     assert cands[0][0][1] == 75  # the smear is the upper front's heaviest candidate: a "flap"
-    assert decide(describe_handle(upper, cands[0][0][0], "masks"), {}, cfg).family == "flap"
-    got, gave_up = resolve_stacked_pulls([upper, lower], cands, cfg.edge_frac)
+    assert decide(describe_handle(upper, cands[0][0][0], "masks", cfg), {}, tc).family == "flap"
+    got, gave_up = resolve_stacked_pulls([upper, lower], cands, tc.edge_frac, cfg.max_gap)
     assert gave_up == [(0, 1)]
-    assert decide(describe_handle(upper, got[0], "masks"), {}, cfg).family == "drawer"
-    assert decide(describe_handle(lower, got[1], "masks"), {}, cfg).family == "drawer"
+    assert decide(describe_handle(upper, got[0], "masks", cfg), {}, tc).family == "drawer"
+    assert decide(describe_handle(lower, got[1], "masks", cfg), {}, tc).family == "drawer"
     # side by side (no stack), or the upper front with no other candidate: nothing changes
     side = Front((0.75, Y, 0.375), (0, -1, 0), (1, 0, 0), (0.5, 0.25))
     sc = handle_candidates([upper, side], pts, cfg, R, 3)
-    got, gave_up = resolve_stacked_pulls([upper, side], sc, cfg.edge_frac)
+    got, gave_up = resolve_stacked_pulls([upper, side], sc, tc.edge_frac, cfg.max_gap)
     assert gave_up == [] and got[0] is sc[0][0][0]
     # a third drawer on top whose choice is the smear of the middle one's pull: once the middle
     # front has given up the lower one's pull for its own, the top one gives that up in turn
     top = Front((0.25, Y, 0.8045), (0, -1, 0), (1, 0, 0), (0.5, 0.203))
     three = np.concatenate([bar(0.89, 0.9, 25), bar(0.706, 0.73, 60), own_upper, smear, own_lower])
     c3 = handle_candidates([top, upper, lower], three, cfg, R, 3)
-    got, gave_up = resolve_stacked_pulls([top, upper, lower], c3, cfg.edge_frac)
+    got, gave_up = resolve_stacked_pulls([top, upper, lower], c3, tc.edge_frac, cfg.max_gap)
     assert sorted(gave_up) == [(0, 1), (1, 2)]
-    fam = [decide(describe_handle(f, p, "masks"), {}, cfg).family for f, p in zip([top, upper, lower], got)]
+    fam = [decide(describe_handle(f, p, "masks", cfg), {}, tc).family for f, p in zip([top, upper, lower], got)]
     assert fam == ["drawer"] * 3, fam
     # vertical bars either side of the gap (a tall door over a door) are two handles
     vbar = lambda z0, z1, n: np.stack([g.uniform(0.46, 0.47, n), np.full(n, Y - 0.03), g.uniform(z0, z1, n)], -1)  # noqa: E731
     vc = handle_candidates([upper, lower], np.concatenate([own_upper, vbar(0.505, 0.56, 75), vbar(0.44, 0.497, 30)]),
                            cfg, R, 3)
-    got, gave_up = resolve_stacked_pulls([upper, lower], vc, cfg.edge_frac)
+    got, gave_up = resolve_stacked_pulls([upper, lower], vc, tc.edge_frac, cfg.max_gap)
     assert gave_up == [] and got[0] is vc[0][0][0]
     lone = handle_candidates([upper, lower], np.concatenate([smear, own_lower]), cfg, R, 3)
-    got, gave_up = resolve_stacked_pulls([upper, lower], lone, cfg.edge_frac)
+    got, gave_up = resolve_stacked_pulls([upper, lower], lone, tc.edge_frac, cfg.max_gap)
     assert gave_up == [] and got[0] is lone[0][0][0]
 
 
@@ -217,11 +222,12 @@ def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle(
     # "handle" masks cover the handle box's faces in 8 of 10 views
     hits = np.where(fc[:, 1] < Y - 0.02, 8, 0)
     views = np.full(len(fc), 10)
-    by_count, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="count"), hits)
-    by_rate, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="view_rate"), hits, face_views=views)
+    count = ArticulateConfig(handles=HandlesConfig(evidence="count"))
+    by_count, _ = infer_parts(mesh, [seg], CAMS, count, hits)
+    by_rate, _ = infer_parts(mesh, [seg], CAMS, ArticulateConfig(), hits, face_views=views)
     assert by_count[0].extra["hinge"] == by_rate[0].extra["hinge"] == "left"
-    with pytest.raises(ValueError, match="face_views"):
-        infer_parts(mesh, [seg], CAMS, ArticulateConfig(handle_evidence="view_rate"), hits)
+    with pytest.raises(InputError, match="face_views"):
+        infer_parts(mesh, [seg], CAMS, ArticulateConfig(), hits)
 
 
 def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
@@ -231,6 +237,7 @@ def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
     w2c = np.array([[1, 0, 0, 0], [0, 0, -1, 0.45], [0, 1, 0, 2.0], [0, 0, 0, 1]], float)
     K = (200.0, 200.0, 100.0, 100.0)
     H = W = 200
+    cam = Camera(Intrinsics(*K, W, H), w2c)
     yy, xx = np.mgrid[0:H, 0:W]
 
     def mask(x0, x1, z0, z1):  # the rectangle's image, pixels whose centres fall inside
@@ -239,10 +246,10 @@ def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
         return (X >= x0) & (X <= x1) & (Z >= z0) & (Z <= z1)
 
     rough = Front((0.0, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.4, 0.5))
-    full = [(mask(-0.25, 0.25, 0.1, 0.8), w2c, K)] * 3
-    f, used = refine_with_masks(rough, full)
+    full = [(mask(-0.25, 0.25, 0.1, 0.8), cam)] * 3
+    f, used = refine_with_masks(rough, full, FrontsConfig())
     assert used == 3 and np.allclose(f.size, [0.5, 0.7], atol=0.01) and np.allclose(f.center, [0, Y, 0.45], atol=0.005)
-    f2, _ = refine_with_masks(rough, [(mask(-0.25, 2.0, 0.1, 0.8), w2c, K)] * 3)  # runs off the right border
+    f2, _ = refine_with_masks(rough, [(mask(-0.25, 2.0, 0.1, 0.8), cam)] * 3, FrontsConfig())  # off the right border
     assert f2.size[0] == pytest.approx(0.25 + 0.2, abs=0.01)  # left edge from the masks, right edge kept
 
 
@@ -272,7 +279,7 @@ def test_abutting_fronts_share_one_boundary():
     assert ea[0] == pytest.approx(0.0) and ea[2:] == pytest.approx((0.1, 0.8))
     assert share_edges([a, b], max_gap=0.0) == [a, b]  # off
     with pytest.raises(ConfigError, match="shared_edge_gap"):
-        ArticulateConfig(shared_edge_gap=-0.01)
+        FrontsConfig(shared_edge_gap=-0.01)
 
 
 def test_learned_estimator_slots_say_why_they_cannot_run():
@@ -282,4 +289,4 @@ def test_learned_estimator_slots_say_why_they_cannot_run():
     with pytest.raises(ConfigError, match="unknown"):
         get_estimator("nope")
     with pytest.raises(ConfigError):
-        ArticulateConfig(edge_frac=0.7)
+        TypesConfig(edge_frac=0.7)

@@ -1,0 +1,162 @@
+"""Config of the ``articulate`` stage (conf/articulate/default.yaml): every threshold that
+changes a result, grouped by the step that uses it. Lengths in metres, angles in degrees."""
+
+from dataclasses import dataclass, field
+
+from drawer_lib.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class FrontsConfig:
+    """Front rectangles (:mod:`drawer_lib.articulation.fronts`). A planar segment whose normal
+    lies within ``vertical_deg`` of horizontal is a front candidate; the plane is re-fitted on
+    the points within ``inlier_m`` of it; the rectangle spans the ``extent_percentile`` ..
+    100 - ``extent_percentile`` percentiles of the points (corrected for a uniform spread).
+    With detections, each side is instead the median over the matched masks (cast onto the
+    plane; ``mask_percentile`` extents) whose pixels on that side stay ``mask_border_px`` away
+    from the image border, when at least ``mask_min_frames`` masks say so. Coplanar fronts
+    (within 0.75 x the smallest sliding step) whose facing edges lie within ``shared_edge_gap``
+    (0 = off), overlap over ``shared_edge_overlap`` of the shorter side and whose axes agree
+    within ``shared_edge_angle_deg`` share one edge. Fronts smaller than ``min_size`` or larger
+    than ``max_size`` (either side) are not parts."""
+
+    vertical_deg: float = 25.0
+    min_size: float = 0.08
+    max_size: float = 1.6
+    inlier_m: float = 0.01
+    extent_percentile: float = 2.0
+    mask_percentile: float = 1.0
+    mask_min_frames: int = 2
+    mask_border_px: int = 2
+    mask_min_pixels: int = 20
+    shared_edge_gap: float = 0.025
+    shared_edge_overlap: float = 0.5
+    shared_edge_angle_deg: float = 10.0
+    sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
+
+    def __post_init__(self):
+        if not 0 < self.extent_percentile < 50 or not 0 < self.mask_percentile < 50:
+            raise ConfigError("articulate.fronts: extent_percentile and mask_percentile must be in (0, 50)")
+        if self.shared_edge_gap < 0:
+            raise ConfigError(f"articulate.fronts.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
+        if not 0 < self.min_size < self.max_size:
+            raise ConfigError("articulate.fronts: need 0 < min_size < max_size")
+
+
+@dataclass(frozen=True)
+class HandlesConfig:
+    """Handles (:mod:`drawer_lib.articulation.handles`). Geometry: mesh points (sampled at
+    ``sample_per_m2``) ``min``..``max`` in front of a front's plane within its rectangle, except
+    on surfaces within ``flat_deg`` of facing up or down and in rows / columns (``row_bin`` m)
+    spanning more than ``full_span`` of the front (a counter edge, a plinth); clusters of
+    ``geo_min_points`` at single linkage ``geo_radius``. Masks: faces covered by "handle" masks
+    in at least ``min_hits`` views, clustered at max(``geo_radius``, ``mask_radius_spacing`` x
+    the mesh's edge length) with ``mask_min_points``; ``evidence`` weighs them by ``count`` or
+    by ``view_rate`` (hits / views seeing the face). Every point goes to the front it lies
+    deepest in, at most ``max_gap`` outside its rectangle and from ``below_plane`` behind to
+    ``max`` in front of it; a cluster spanning ``max_span`` of a front is not a handle. A handle
+    is round when its longer extent is below ``round_aspect`` x the shorter + ``round_slack``.
+    ``stacked_pulls``: a horizontal pull in the gap between two stacked fronts (coplanar within
+    ``stacked_plane_tol``, overlapping over ``stacked_min_overlap``) that both take goes to the
+    lower one (:func:`~drawer_lib.articulation.handles.resolve_stacked_pulls`)."""
+
+    min: float = 0.008
+    max: float = 0.08
+    evidence: str = "view_rate"
+    min_hits: int = 2
+    geo_radius: float = 0.015
+    geo_min_points: int = 10
+    mask_radius_spacing: float = 1.5
+    mask_min_points: int = 3
+    max_gap: float = 0.03
+    max_span: float = 0.85
+    below_plane: float = 0.01
+    flat_deg: float = 30.0
+    full_span: float = 0.8
+    row_bin: float = 0.01
+    round_aspect: float = 1.8
+    round_slack: float = 0.01
+    stacked_pulls: bool = True
+    stacked_plane_tol: float = 0.02
+    stacked_min_overlap: float = 0.5
+    sample_per_m2: float = 20000.0
+
+    def __post_init__(self):
+        if not 0 < self.min < self.max:
+            raise ConfigError("articulate.handles: need 0 < min < max")
+        if self.evidence not in ("count", "view_rate"):
+            raise ConfigError(f"articulate.handles.evidence = {self.evidence!r} must be count or view_rate")
+        if self.min_hits < 1 or self.geo_min_points < 1 or self.mask_min_points < 1:
+            raise ConfigError("articulate.handles: min_hits, geo_min_points and mask_min_points must be >= 1")
+
+
+@dataclass(frozen=True)
+class TypesConfig:
+    """The type rule (:func:`~drawer_lib.articulation.joints.decide`): a handle within
+    ``edge_frac`` of a side edge makes a door hinged on the far side (a horizontal one only
+    within ``edge_frac`` / 2), near the bottom a flap hinged at the top, near the top a drawer
+    (or, when ``use_labels`` and the majority of label votes is in ``door_labels`` rather than
+    ``drawer_labels``, a flap hinged at the bottom), central a drawer."""
+
+    edge_frac: float = 0.3
+    use_labels: bool = True
+    door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
+    drawer_labels: list[str] = field(default_factory=lambda: ["drawer"])
+
+    def __post_init__(self):
+        if not 0 < self.edge_frac < 0.5:
+            raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
+
+
+@dataclass(frozen=True)
+class JointsConfig:
+    """Axes and limits (:mod:`drawer_lib.articulation.joints`). Revolute parts open to
+    ``revolute_limit_deg``. A drawer travels ``drawer_travel`` x the carcass depth: the
+    ``carcass_percentile`` of the distances, between ``carcass_min_depth`` and
+    ``carcass_max_depth`` behind the front, of the mesh points facing the same way (cosine >=
+    ``carcass_normal_cos``), when there are ``carcass_min_points`` of them (else
+    ``default_depth``). Sliding doors: an adjacent front (overlap > -``sliding_adjacent_gap``)
+    with a near-parallel normal (cosine >= ``sliding_normal_cos``) a ``sliding_step`` [min,
+    max] behind (measured on the points within ``sliding_band`` of their shared edge), of the
+    same height (within ``sliding_same_height`` of it, centres within ``sliding_aligned`` of
+    it); each travels the partner's width minus the overlap and ``sliding_clearance``, at least
+    ``sliding_min_travel``."""
+
+    revolute_limit_deg: float = 90.0
+    drawer_travel: float = 0.8
+    default_depth: float = 0.5
+    carcass_min_depth: float = 0.1
+    carcass_max_depth: float = 1.0
+    carcass_normal_cos: float = 0.9
+    carcass_percentile: float = 10.0
+    carcass_min_points: int = 10
+    sliding_step: list[float] = field(default_factory=lambda: [0.008, 0.06])
+    sliding_adjacent_gap: float = 0.04
+    sliding_normal_cos: float = 0.95
+    sliding_band: float = 0.08
+    sliding_same_height: float = 0.15
+    sliding_aligned: float = 0.1
+    sliding_clearance: float = 0.02
+    sliding_min_travel: float = 0.05
+
+    def __post_init__(self):
+        if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:
+            raise ConfigError(f"articulate.joints.sliding_step = {self.sliding_step} must be [min, max] with 0 <= min < max")
+        if self.revolute_limit_deg <= 0 or self.drawer_travel <= 0:
+            raise ConfigError("articulate.joints: revolute_limit_deg and drawer_travel must be positive")
+        if not 0 <= self.carcass_min_depth < self.carcass_max_depth:
+            raise ConfigError("articulate.joints: need 0 <= carcass_min_depth < carcass_max_depth")
+
+
+@dataclass(frozen=True)
+class ArticulateConfig:
+    """Segments -> ``parts.json`` (DESIGN §5). ``estimator``: ``geometric`` (built in: plane,
+    rectangle, handle and layout cues) or a learned one (``3doi``, ``vlm``: named slots that need
+    weights or services not available here; register one with
+    :func:`drawer_lib.articulation.estimators.register_estimator`)."""
+
+    estimator: str = "geometric"
+    fronts: FrontsConfig = field(default_factory=FrontsConfig)
+    handles: HandlesConfig = field(default_factory=HandlesConfig)
+    types: TypesConfig = field(default_factory=TypesConfig)
+    joints: JointsConfig = field(default_factory=JointsConfig)

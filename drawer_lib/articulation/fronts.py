@@ -1,0 +1,206 @@
+"""Front rectangles: a robust plane through a planar segment, its outward normal, the
+rectangle from the segment's points or from the 2D masks it matched, and the shared edges of
+abutting fronts. Lengths in metres."""
+
+import numpy as np
+import trimesh
+from jaxtyping import Float, Int
+
+from drawer_lib.articulation.config import FrontsConfig
+from drawer_lib.geometry.camera import Camera
+from drawer_lib.geometry.frames import plane_axes
+from drawer_lib.geometry.sampling import sample_triangles
+from drawer_lib.io.parts import Front
+from drawer_lib.perception.decompose import Segment
+
+MAX_SAMPLES = 400_000
+
+
+def sample_points(mesh: trimesh.Trimesh, faces: Int[np.ndarray, "K"], per_m2: float, seed: int
+                  ) -> tuple[Float[np.ndarray, "P 3"], Int[np.ndarray, "P"]]:
+    """The centroids of ``faces`` followed by area-uniform points on them (``per_m2`` per
+    square metre, at most 400k); returns (points [P, 3], face id of each point [P])."""
+    tri = np.asarray(mesh.triangles)[faces]
+    area = np.asarray(mesh.area_faces)[faces]
+    n = int(min(max(area.sum() * per_m2, 0), MAX_SAMPLES))
+    cen = tri.mean(1)
+    if n == 0 or area.sum() <= 0:
+        return cen, faces
+    pts, k = sample_triangles(tri, n, np.random.default_rng(seed), areas=area)
+    return np.concatenate([cen, pts]), np.concatenate([faces, faces[k]])
+
+
+def _uniform_extent(lo: np.ndarray, hi: np.ndarray, pct: float) -> tuple[np.ndarray, np.ndarray]:
+    """The full extent of a uniform spread whose ``pct`` and 100 - ``pct`` percentiles are
+    ``lo`` and ``hi``."""
+    mid = (lo + hi) / 2
+    keep = 1 - 2 * pct / 100
+    return mid + (lo - mid) / keep, mid + (hi - mid) / keep
+
+
+def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: Float[np.ndarray, "C 3"], cfg: FrontsConfig
+              ) -> Front | None:
+    """The front rectangle of a planar segment (outward normal toward most of the cameras, u
+    horizontal, centre on the panel's outer face), or None for a degenerate one."""
+    P, _ = sample_points(mesh, seg.faces, cfg.sample_per_m2, seed=0)
+    if len(P) < 3:
+        return None
+    n = seg.normal / max(np.linalg.norm(seg.normal), 1e-12)
+    if not np.all(np.isfinite(n)) or np.linalg.norm(n) < 0.5:
+        return None
+    c = np.median(P, 0)
+    for _ in range(3):  # re-fit the plane on its inliers
+        d = (P - c) @ n
+        inl = np.abs(d - np.median(d)) < cfg.inlier_m
+        if inl.sum() < 3:
+            break
+        Q = P[inl]
+        c = Q.mean(0)
+        _, _, vt = np.linalg.svd(Q - c, full_matrices=False)
+        n_new = vt[2]
+        n = n_new if n_new @ n >= 0 else -n_new
+    # outward = toward the cameras
+    view = cam_centers - c
+    if np.sum(view @ n > 0) < len(cam_centers) / 2:
+        n = -n
+    u, v = plane_axes(n)
+    d = (P - c) @ n
+    inl = np.abs(d - np.median(d)) < cfg.inlier_m
+    Q = P[inl] if inl.sum() >= 3 else P
+    uv = np.stack([(Q - c) @ u, (Q - c) @ v], -1)
+    pct = cfg.extent_percentile
+    lo, hi = np.percentile(uv, pct, 0), np.percentile(uv, 100 - pct, 0)
+    mid = (lo + hi) / 2
+    lo, hi = _uniform_extent(lo, hi, pct)
+    off = float(np.percentile((Q - c) @ n, 90))  # the outer face of the panel
+    center = c + mid[0] * u + mid[1] * v + off * n
+    size = hi - lo
+    return Front(tuple(center.tolist()), tuple(n.tolist()), tuple(u.tolist()), (float(size[0]), float(size[1])))
+
+
+def mask_uv(front: Front, mask: np.ndarray, cam: Camera, border_px: int, min_pixels: int
+            ) -> tuple[np.ndarray, np.ndarray] | None:
+    """((u, v) [N, 2] of the pixels of ``mask`` [H, W] cast from ``cam`` onto the front plane,
+    [N] pixel within ``border_px`` of the image border), or None for fewer than ``min_pixels``."""
+    H, W = mask.shape
+    ii, jj = np.nonzero(mask)
+    if len(ii) < min_pixels:
+        return None
+    _, d = cam.rays(ii, jj)
+    o = cam.center
+    c, n = np.asarray(front.center), np.asarray(front.normal)
+    den = d @ n
+    ok = np.abs(den) > 1e-9
+    t = ((c - o) @ n) / np.where(ok, den, 1.0)
+    ok &= t > 0
+    if ok.sum() < min_pixels:
+        return None
+    P = o + t[ok, None] * d[ok]
+    rel = P - c
+    border = (ii < border_px) | (ii >= H - border_px) | (jj < border_px) | (jj >= W - border_px)
+    return np.stack([rel @ np.asarray(front.u), rel @ front.v], -1), border[ok]
+
+
+def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg: FrontsConfig) -> tuple[Front, int]:
+    """The front's rectangle from the 2D masks it matched: each mask's pixels are cast onto the
+    front plane; per mask and side, the ``mask_percentile`` extent along u and v (corrected
+    for a uniform spread); per side the median over the masks whose extreme pixels on that side
+    do not touch the image border (a mask cut by the frame says nothing about that edge). A side
+    with fewer than ``mask_min_frames`` such masks keeps the mesh fit. ``masks``: [(bool mask
+    [H, W], the camera that saw it)]. Returns (front, masks used)."""
+    c, u = np.asarray(front.center), np.asarray(front.u)
+    v = front.v
+    hw, hh = front.size[0] / 2, front.size[1] / 2
+    sides: list[list[float]] = [[], [], [], []]  # lo_u, lo_v, hi_u, hi_v
+    used = 0
+    pct = cfg.mask_percentile
+    for mask, cam in masks:
+        r = mask_uv(front, mask, cam, cfg.mask_border_px, cfg.mask_min_pixels)
+        if r is None:
+            continue
+        uv, at_border = r
+        lo, hi = np.percentile(uv, pct, 0), np.percentile(uv, 100 - pct, 0)
+        lo_c, hi_c = _uniform_extent(lo, hi, pct)
+        any_side = False
+        for a in range(2):
+            if not at_border[uv[:, a] <= lo[a]].any():
+                sides[a].append(lo_c[a])
+                any_side = True
+            if not at_border[uv[:, a] >= hi[a]].any():
+                sides[2 + a].append(hi_c[a])
+                any_side = True
+        used += any_side
+    fallback = [-hw, -hh, hw, hh]
+    ext = [float(np.median(x)) if len(x) >= cfg.mask_min_frames else fb for x, fb in zip(sides, fallback)]
+    lo_u, lo_v, hi_u, hi_v = ext
+    if hi_u <= lo_u or hi_v <= lo_v:
+        return front, 0
+    center = c + (lo_u + hi_u) / 2 * u + (lo_v + hi_v) / 2 * v
+    return Front(tuple(center.tolist()), front.normal, front.u, (float(hi_u - lo_u), float(hi_v - lo_v))), used
+
+
+def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_overlap: float = 0.5,
+                   max_angle_deg: float = 10.0) -> list[tuple[int, int, float]]:
+    """Where front ``b`` abuts front ``a``: [(axis, side, offset)] with axis 0 (a's u) or 1 (a's
+    v), side +1 when b lies beyond a's high edge along that axis and -1 beyond its low edge, and
+    offset = b's centre along the *other* axis in a's frame (m). Abutting: coplanar within
+    ``plane_tol`` m, same axes within ``max_angle_deg``, the facing edges under ``max_gap`` m
+    apart either way, overlapping over ``min_overlap`` of the shorter side."""
+    cos_t = np.cos(np.deg2rad(max_angle_deg))
+    na, ua, va = np.asarray(a.normal), np.asarray(a.u), a.v
+    d = np.asarray(b.center) - np.asarray(a.center)
+    if na @ np.asarray(b.normal) < cos_t or ua @ np.asarray(b.u) < cos_t or abs(d @ na) > plane_tol:
+        return []
+    du, dv = d @ ua, d @ va  # b's centre in a's frame
+    aw, ah, bw, bh = a.size[0] / 2, a.size[1] / 2, b.size[0] / 2, b.size[1] / 2
+    out = []
+    for ax, off, (alo, ahi), (blo, bhi), (olo, ohi), (oblo, obhi), other in (
+            (0, du, (-aw, aw), (du - bw, du + bw), (-ah, ah), (dv - bh, dv + bh), dv),
+            (1, dv, (-ah, ah), (dv - bh, dv + bh), (-aw, aw), (du - bw, du + bw), du)):
+        overlap = min(ohi, obhi) - max(olo, oblo)
+        if overlap < min_overlap * min(ohi - olo, obhi - oblo):
+            continue
+        if off > 0 and abs(blo - ahi) < max_gap:
+            out.append((ax, 1, float(other)))
+        elif off < 0 and abs(alo - bhi) < max_gap:
+            out.append((ax, -1, float(other)))
+    return out
+
+
+def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, min_overlap: float = 0.5,
+                max_angle_deg: float = 10.0) -> list[Front]:
+    """Fronts whose facing edges abut (:func:`abutting_edges`) have one boundary, estimated
+    independently from each front's masks: both edges move to the midpoint of the two estimates
+    (the mean of the midpoints when an edge has several neighbours), halving the variance of a
+    hinge edge that a neighbour shares. A sliding pair, a track apart, is not coplanar and is
+    left alone. ``max_gap`` <= 0 returns the fronts unchanged."""
+    if max_gap <= 0 or len(fronts) < 2:
+        return fronts
+    # per front: (lo_u, hi_u, lo_v, hi_v) in its own frame
+    ext = [[-f.size[0] / 2, f.size[0] / 2, -f.size[1] / 2, f.size[1] / 2] for f in fronts]
+    props: list[list[list[float]]] = [[[], [], [], []] for _ in fronts]
+    for i, a in enumerate(fronts):
+        for j in range(i + 1, len(fronts)):
+            b = fronts[j]
+            d = np.asarray(b.center) - np.asarray(a.center)
+            offs = (d @ np.asarray(a.u), d @ a.v)  # b's centre in a's frame
+            for ax, side, _ in abutting_edges(a, b, max_gap, plane_tol, min_overlap, max_angle_deg):
+                k = 2 * ax  # index of lo along this axis in (lo_u, hi_u, lo_v, hi_v)
+                off, half_b = offs[ax], b.size[ax] / 2
+                if side > 0:  # b beyond a's high edge
+                    m = (ext[i][k + 1] + (off - half_b)) / 2
+                    props[i][k + 1].append(m)
+                    props[j][k].append(m - off)
+                else:  # b beyond a's low edge
+                    m = (ext[i][k] + (off + half_b)) / 2
+                    props[i][k].append(m)
+                    props[j][k + 1].append(m - off)
+    out = []
+    for f, e, pr in zip(fronts, ext, props):
+        e = [float(np.mean(x)) if x else y for x, y in zip(pr, e)]
+        if e[1] <= e[0] or e[3] <= e[2]:
+            out.append(f)
+            continue
+        c = np.asarray(f.center) + (e[0] + e[1]) / 2 * np.asarray(f.u) + (e[2] + e[3]) / 2 * f.v
+        out.append(Front(tuple(c.tolist()), f.normal, f.u, (e[1] - e[0], e[3] - e[2])))
+    return out

@@ -1,0 +1,206 @@
+"""Handles: the evidence (mesh protrusions in front of a front, faces that "handle" masks
+cover), its assignment to fronts, the choice of each front's handle, and the handle's place
+and shape in the front's unit square. Lengths in metres."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from jaxtyping import Float
+
+from drawer_lib.articulation.config import HandlesConfig
+from drawer_lib.articulation.fronts import abutting_edges
+from drawer_lib.geometry.frames import UP
+from drawer_lib.io.parts import Front
+from drawer_lib.perception.views import connected_components
+
+Candidates = list[list[tuple[np.ndarray, float]]]  # per front: [(points [M, 3], weight)], heaviest first
+
+
+@dataclass
+class Handle:
+    a_u: float  # handle centroid in the front's unit square, left -> right
+    a_v: float  # bottom -> top
+    orientation: str  # horizontal | vertical | round
+    n_points: int
+    source: str  # geometry (mesh protrusions) | masks (handle detections)
+
+
+def handle_clusters(points: Float[np.ndarray, "N 3"], radius: float, min_points: int) -> list[np.ndarray]:
+    """Handle candidates: indices into ``points`` of the groups that single linkage at
+    ``radius`` (m) forms, each of at least ``min_points``."""
+    if len(points) < min_points:
+        return []
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.int64).reshape(-1, 2)
+    lab = connected_components(len(points), pairs)
+    return [np.nonzero(lab == k)[0] for k in np.unique(lab) if (lab == k).sum() >= min_points]
+
+
+def handle_candidates(fronts: list[Front], points: Float[np.ndarray, "N 3"], cfg: HandlesConfig, radius: float,
+                      min_points: int, weights: np.ndarray | None = None) -> Candidates:
+    """Per front, its handle candidates [(points [M, 3], total weight)], heaviest first: every
+    handle point goes to the front whose rectangle it lies deepest in (signed in-plane distance,
+    negative inside; at most ``cfg.max_gap`` outside) among those it stands -``below_plane`` ..
+    ``max`` in front of; the candidates are the clusters of a front's points
+    (:func:`handle_clusters`) that span less than ``max_span`` of the front either way, weighed
+    by ``weights`` [N] >= 0 (default 1 per point). An edge pull straddling the gap between two
+    fronts thus goes, point by point, mostly to the front it reaches into."""
+    out: Candidates = [[] for _ in fronts]
+    if len(fronts) == 0 or len(points) == 0:
+        return out
+    w_all = np.ones(len(points)) if weights is None else np.asarray(weights, float)
+    if w_all.shape != (len(points),) or not np.all(np.isfinite(w_all)) or (w_all < 0).any():
+        raise ValueError(f"handle_candidates: weights must be [{len(points)}] finite and >= 0")
+    best = np.full(len(points), np.inf)
+    owner = np.full(len(points), -1)
+    for k, f in enumerate(fronts):
+        rel = points - np.asarray(f.center)
+        eu = np.abs(rel @ np.asarray(f.u)) - f.size[0] / 2
+        ev = np.abs(rel @ f.v) - f.size[1] / 2
+        h = rel @ np.asarray(f.normal)
+        inside = (eu <= 0) & (ev <= 0)
+        d = np.where(inside, np.maximum(eu, ev), np.hypot(np.maximum(eu, 0), np.maximum(ev, 0)))
+        ok = (h >= -cfg.below_plane) & (h <= cfg.max) & (d <= cfg.max_gap) & (d < best)
+        best[ok] = d[ok]
+        owner[ok] = k
+    for k, f in enumerate(fronts):
+        u, v = np.asarray(f.u), f.v
+        pts, w = points[owner == k], w_all[owner == k]
+        # a handle is shorter than its front: a cluster spanning it is a counter edge or a plinth
+        cl = [i for i in handle_clusters(pts, radius, min_points)
+              if np.ptp(pts[i] @ u) < cfg.max_span * f.size[0] and np.ptp(pts[i] @ v) < cfg.max_span * f.size[1]]
+        cl.sort(key=lambda i: (-float(w[i].sum()), -len(i)))
+        out[k] = [(pts[i], float(w[i].sum())) for i in cl]
+    return out
+
+
+def heaviest(cands: Candidates) -> list[np.ndarray | None]:
+    """Each front's heaviest candidate (its points), or None."""
+    return [c[0][0] if c else None for c in cands]
+
+
+def resolve_stacked_pulls(fronts: list[Front], cands: Candidates, edge_frac: float, max_gap: float,
+                          plane_tol: float = 0.02, min_overlap: float = 0.5
+                          ) -> tuple[list[np.ndarray | None], list[tuple[int, int]]]:
+    """The handle of each front (its heaviest candidate) once stacked fronts share no pull.
+
+    An edge pull in the gap between a front and the one below it (:func:`abutting_edges`) is
+    seen by both: masks ragged by a pixel or two at ~1.3 cm per pixel cover both sides, so the
+    upper front may take the lower one's pull as "a handle near my bottom edge" (a flap) while
+    the lower takes it as its top-edge pull. When the upper front's choice lies in its bottom
+    ``edge_frac`` and the lower front's in its top ``edge_frac``, both wider than tall and
+    overlapping in width, they are one pull, and it goes to the lower front: a pull in such a
+    gap is a lip pull on the top edge of the front below (the point weights cannot tell: on
+    kitchen_tiny's drawer stack the upper front holds 75 of the pull's mask faces, the lower
+    30). The upper front takes its next candidate if it has one; repeated until nothing
+    changes (in a stack of three, the middle front's change can make the top one's choice a
+    shared pull). Returns (handle points per front or None, [(front that gave up a candidate,
+    front below)])."""
+    choice = [0 if c else -1 for c in cands]
+    changed: list[tuple[int, int]] = []
+
+    def band(k: int) -> tuple[float, float, float, bool]:
+        """(u range in the front's frame, median height as a fraction of the front (0 = bottom),
+        wider than tall)."""
+        f = fronts[k]
+        rel = cands[k][choice[k]][0] - np.asarray(f.center)
+        pu, pv = rel @ np.asarray(f.u), rel @ f.v
+        wide = bool(np.ptp(pu) > np.ptp(pv))
+        return float(pu.min()), float(pu.max()), float(np.median(pv)) / max(f.size[1], 1e-9) + 0.5, wide
+
+    # stacked pairs (a above b: b abuts a's low edge along a's v), fixed by the geometry
+    pairs = [(a, b, du) for a, fa in enumerate(fronts) for b, fb in enumerate(fronts)
+             if a != b and cands[a] and cands[b]
+             for ax, side, du in abutting_edges(fa, fb, max_gap, plane_tol, min_overlap) if (ax, side) == (1, -1)]
+    # until nothing changes: an upper front only ever moves on to its next candidate, so this
+    # ends; a stack of three resolves from the bottom pair up
+    moved = True
+    while moved:
+        moved = False
+        for a, b, du in pairs:
+            ua0, ua1, va, wide_a = band(a)
+            ub0, ub1, vb, wide_b = band(b)
+            if va > edge_frac or vb < 1 - edge_frac or min(ua1, ub1 + du) < max(ua0, ub0 + du):
+                continue
+            if not (wide_a and wide_b):  # two vertical bars by the gap (a tall unit's doors): two handles
+                continue
+            if choice[a] + 1 < len(cands[a]):  # the upper front gives it up for its next candidate
+                choice[a] += 1
+                changed.append((a, b))
+                moved = True
+    return [cands[k][choice[k]][0] if choice[k] >= 0 else None for k in range(len(fronts))], changed
+
+
+def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: HandlesConfig) -> Handle | None:
+    """The handle's place (median of its points [M, 3] in the front's unit square) and shape
+    (5th-95th percentile extents: round when the longer is below ``round_aspect`` x the shorter
+    + ``round_slack``)."""
+    if pts is None:
+        return None
+    c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
+    hw, hh = front.size[0] / 2, front.size[1] / 2
+    rel = pts - c
+    pu, pv = rel @ u, rel @ v
+    a_u = float(np.clip((np.median(pu) + hw) / max(2 * hw, 1e-9), 0, 1))
+    a_v = float(np.clip((np.median(pv) + hh) / max(2 * hh, 1e-9), 0, 1))
+    eu = np.percentile(pu, 95) - np.percentile(pu, 5)
+    ev = np.percentile(pv, 95) - np.percentile(pv, 5)
+    round_ = max(eu, ev) < cfg.round_aspect * min(eu, ev) + cfg.round_slack
+    orient = "round" if round_ else ("horizontal" if eu > ev else "vertical")
+    return Handle(a_u, a_v, orient, int(len(pts)), source)
+
+
+def protrusions(front: Front, mesh_points: Float[np.ndarray, "P 3"], normals: Float[np.ndarray, "P 3"],
+                cfg: HandlesConfig) -> np.ndarray:
+    """Mesh points within the front rectangle and ``min``..``max`` in front of it, except on
+    surfaces within ``flat_deg`` of facing up or down (a counter's overhang above a front, a
+    shelf) and in rows / columns spanning more than ``full_span`` of the front."""
+    rel = mesh_points - np.asarray(front.center)
+    pu, pv, pn = rel @ np.asarray(front.u), rel @ front.v, rel @ np.asarray(front.normal)
+    sel = (np.abs(pu) <= front.size[0] / 2) & (np.abs(pv) <= front.size[1] / 2) & (pn >= cfg.min) & (pn <= cfg.max)
+    sel &= np.abs(normals @ UP) < np.cos(np.deg2rad(cfg.flat_deg))
+    # full-width rows / full-height columns are a counter edge, a plinth, a carcass side: not handles
+    for coord, other, extent in ((pv, pu, front.size[0]), (pu, pv, front.size[1])):
+        bins = np.floor(coord / cfg.row_bin).astype(np.int64)
+        for b in np.unique(bins[sel]):
+            row = sel & (bins == b)
+            if np.ptp(other[row]) > cfg.full_span * extent:
+                sel &= ~row
+    return mesh_points[sel]
+
+
+def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarray, face_centers: np.ndarray,
+                  edge_length: float, cfg: HandlesConfig, edge_frac: float, stack_gap: float,
+                  handle_hits: np.ndarray | None = None, face_views: np.ndarray | None = None
+                  ) -> tuple[list[Handle | None], list[tuple[int, int]]]:
+    """Each front's handle (or None) from both kinds of evidence, the masks' first; and the
+    stacked pulls resolved (:func:`resolve_stacked_pulls`, when ``cfg.stacked_pulls``).
+    ``mesh_pts`` / ``pt_normal`` [P, 3]: points sampled on the mesh and their normals;
+    ``face_centers`` [F, 3]; ``edge_length``: the mesh's typical edge (m); ``handle_hits`` [F]:
+    in how many views a "handle" mask covers each face; ``face_views`` [F]: in how many views
+    each face is visible (needed by ``evidence: view_rate``)."""
+    from drawer_lib.errors import InputError
+
+    geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
+    geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
+    hit_faces = np.nonzero(handle_hits >= cfg.min_hits)[0] if handle_hits is not None else np.zeros(0, np.int64)
+    hit_w = None
+    if cfg.evidence == "view_rate" and handle_hits is not None:
+        if face_views is None:
+            raise InputError("articulate.handles.evidence = view_rate needs face_views (a decompose output that "
+                             "stores them: re-run decompose)")
+        if len(face_views) != len(handle_hits):
+            raise InputError(f"articulate: face_views has {len(face_views)} entries, handle_hits {len(handle_hits)}")
+        hit_w = np.clip(handle_hits[hit_faces] / np.maximum(face_views[hit_faces], 1), 0.0, 1.0)
+    by_geo = heaviest(handle_candidates(fronts, geo_pts, cfg, cfg.geo_radius, cfg.geo_min_points))
+    radius = max(cfg.geo_radius, cfg.mask_radius_spacing * edge_length)
+    mask_cands = handle_candidates(fronts, face_centers[hit_faces], cfg, radius, cfg.mask_min_points, weights=hit_w)
+    if cfg.stacked_pulls:
+        by_mask, gave_up = resolve_stacked_pulls(fronts, mask_cands, edge_frac, stack_gap, cfg.stacked_plane_tol,
+                                                 cfg.stacked_min_overlap)
+    else:
+        by_mask, gave_up = heaviest(mask_cands), []
+    handles = [describe_handle(f, m, "masks", cfg) if m is not None else describe_handle(f, g, "geometry", cfg)
+               for f, g, m in zip(fronts, by_geo, by_mask)]
+    return handles, gave_up

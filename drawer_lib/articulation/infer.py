@@ -1,0 +1,104 @@
+"""The built-in estimator: segments + mesh -> parts (DESIGN §5), without learned models.
+
+Per planar, vertical segment a front rectangle (:mod:`~drawer_lib.articulation.fronts`), then
+for all fronts together their handles (:mod:`~drawer_lib.articulation.handles`), sliding pairs,
+the type of each and its joint (:mod:`~drawer_lib.articulation.joints`). Non-planar segments
+become ``rigid`` parts (centre and axis-aligned bounds).
+"""
+
+from collections.abc import Callable
+
+import numpy as np
+import trimesh
+
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.fronts import fit_front, refine_with_masks, sample_points, share_edges
+from drawer_lib.articulation.handles import front_handles
+from drawer_lib.articulation.joints import Decision, carcass_depth, decide, make_part, sliding_partners
+from drawer_lib.geometry.frames import UP
+from drawer_lib.io.parts import Front, Part
+from drawer_lib.perception.decompose import Segment
+
+
+def rigid_part(seg: Segment, mesh: trimesh.Trimesh, k: int) -> Part:
+    V = np.asarray(mesh.vertices)[np.unique(np.asarray(mesh.faces)[seg.faces])]
+    lo, hi = V.min(0), V.max(0)
+    return Part(f"object_{k}", "rigid", center=tuple(((lo + hi) / 2).tolist()),
+                bounds=(tuple(lo.tolist()), tuple(hi.tolist())), extra={"segment": seg.id, "labels": seg.labels})
+
+
+def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,
+                   masks_of: Callable | None, parts: list[Part], report: list[dict]
+                   ) -> list[tuple[Segment, Front, dict]]:
+    """The front of every planar, vertical segment of a plausible size (shared edges applied);
+    non-planar segments are appended to ``parts`` as rigid parts, and every segment that gives
+    no front to ``report`` with the reason."""
+    fc = cfg.fronts
+    sin_v = np.sin(np.deg2rad(fc.vertical_deg))
+    fits: list[tuple[Segment, Front, dict]] = []
+    for s in segs:
+        if not s.planar:
+            parts.append(rigid_part(s, mesh, sum(p.kind == "rigid" for p in parts)))
+            report.append({"segment": s.id, "family": "rigid", "reason": "not planar"})
+            continue
+        fitted = fit_front(mesh, s, cam_centers, fc)
+        if fitted is None:
+            report.append({"segment": s.id, "family": "none", "reason": "degenerate plane"})
+            continue
+        if abs(np.dot(fitted.normal, UP)) > sin_v:
+            report.append({"segment": s.id, "family": "none", "reason": "not vertical"})
+            continue
+        front, used = fitted, 0
+        if masks_of is not None:
+            front, used = refine_with_masks(fitted, masks_of(s), fc)
+        w, h = front.size
+        if min(w, h) < fc.min_size or max(w, h) > fc.max_size:
+            report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
+            continue
+        fits.append((s, front, {"rect_from_masks": used}))
+    fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
+                         min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg)
+    return [(s, f, info) for (s, _, info), f in zip(fits, fronts)]
+
+
+def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,
+                handle_hits: np.ndarray | None = None, masks_of: Callable | None = None,
+                face_views: np.ndarray | None = None) -> tuple[list[Part], list[dict]]:
+    """(parts, per-segment decisions for the report). ``cam_centers`` [C, 3]: the train cameras
+    (a front's normal points toward them); ``handle_hits`` [F]: in how many views a "handle"
+    mask covers each face; ``face_views`` [F]: in how many views each face is visible (needed by
+    ``handles.evidence: view_rate``); ``masks_of(segment)`` -> [(bool mask [H, W], Camera)]: the
+    2D masks a segment matched (they refine its rectangle); None uses the mesh alone."""
+    parts: list[Part] = []
+    report: list[dict] = []
+    fits = segment_fronts(mesh, segs, cam_centers, cfg, masks_of, parts, report)
+    fronts = [f for _, f, _ in fits]
+    mesh_pts, pt_face = sample_points(mesh, np.arange(len(mesh.faces)), cfg.handles.sample_per_m2, seed=1)
+    pt_normal = np.asarray(mesh.face_normals)[pt_face]
+    edge = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
+    handles, gave_up = front_handles(fronts, mesh_pts, pt_normal, np.asarray(mesh.triangles_center), edge,
+                                     cfg.handles, cfg.types.edge_frac,
+                                     max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views)
+    seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
+    partner = sliding_partners(fronts, handles, cfg.joints, seg_pts)
+    counts: dict[str, int] = {}
+    for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
+        if k in partner:
+            dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
+        else:
+            dec = decide(h, s.labels, cfg.types)
+        reason = dec.reason + "".join(f"; the pull it shared with segment {fits[hi][0].id} went there"
+                                      for lo, hi in gave_up if lo == k)
+        row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason,
+               "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size], **info}
+        report.append(row)
+        if dec.family == "fixed":
+            continue
+        pid = f"{dec.family}_{counts.get(dec.family, 0)}"
+        counts[dec.family] = counts.get(dec.family, 0) + 1
+        extra = {"family": dec.family, "segment": s.id}
+        carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints) if dec.family == "drawer" else None
+        pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
+        parts.append(make_part(pid, dec, fr, cfg.joints, extra, carcass, pair))
+        row["part"] = pid
+    return parts, report

@@ -1,0 +1,57 @@
+"""What the ``articulate`` stage does: the decompose outputs + capture -> ``parts.json``
+(DESIGN §5) and ``decisions.json`` (why each segment got its type)."""
+
+from pathlib import Path
+
+import numpy as np
+
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.estimators import get_estimator
+from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Camera
+from drawer_lib.io.capture import Capture
+from drawer_lib.io.images import write_json
+from drawer_lib.io.parts import PartsFile, write_parts
+from drawer_lib.perception.decompose import Segment
+from drawer_lib.perception.pipeline import load_segments
+from drawer_lib.runner import StageRun
+
+
+def mask_source(cap: Capture):
+    """segment -> [(bool mask [H, W], the Camera of its frame)] of the detections it matched."""
+    index = {cap.frames[i].stem: i for i in range(len(cap.frames))}
+    cache: dict[int, np.ndarray] = {}
+
+    def masks_of(seg: Segment) -> list[tuple[np.ndarray, Camera]]:
+        out = []
+        for stem, d in seg.matched:
+            i = index.get(stem)
+            if i is None:
+                raise InputError(f"segments.json: segment {seg.id} refers to frame {stem!r}, which the capture lacks")
+            if i not in cache:
+                cache[i] = cap.detections(i)[0]
+            out.append((cache[i] == d, cap.camera(i)))
+        return out
+
+    return masks_of
+
+
+def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: StageRun) -> dict:
+    """Infer the parts of the segments in ``seg_dir`` (a decompose output) and write them."""
+    est = get_estimator(cfg.estimator)
+    mesh, segs, hits, face_views = load_segments(seg_dir)
+    if cfg.handles.evidence == "view_rate" and face_views is None:
+        raise InputError(f"{seg_dir}: face_labels has no face_views, which articulate.handles.evidence = "
+                         "view_rate needs (written by an older decompose: re-run it)")
+    centers = np.stack([cap.frames[i].c2w[:3, 3] for i in cap.train])
+    masks_of = mask_source(cap) if cap.has("detections_path") else None
+    parts, report = est(mesh, segs, centers, cfg, handle_hits=hits, masks_of=masks_of, face_views=face_views)
+    pf = PartsFile(tuple(parts))
+    write_parts(run.out("parts"), pf)
+    write_json(run.out("decisions"), {"estimator": cfg.estimator, "segments": report})
+    fam: dict[str, int] = {}
+    for p in parts:
+        f = p.extra.get("family", p.kind)
+        fam[f] = fam.get(f, 0) + 1
+    return {"estimator": cfg.estimator, "n_parts": len(parts), **{f"n_{k}": v for k, v in pf.kinds().items()},
+            "families": fam}

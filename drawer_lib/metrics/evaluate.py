@@ -1,0 +1,38 @@
+"""What the ``evaluate`` stage does: ``parts.json`` against the capture's ``gt/parts.json`` ->
+precision, recall, EA-score (DESIGN §6) and which prediction matched which GT part."""
+
+from pathlib import Path
+
+from drawer_lib.errors import InputError
+from drawer_lib.io.capture import Capture
+from drawer_lib.io.images import write_json
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.parts import read_parts
+from drawer_lib.metrics.articulation import articulation_metrics
+from drawer_lib.paths import capture_name
+from drawer_lib.runner import StageRun
+
+
+def run_evaluate(cap: Capture, parts_path: Path, run: StageRun) -> dict:
+    """Score the predicted parts at ``parts_path``; scenes without ground truth record the skip."""
+    if not parts_path.is_file():
+        raise InputError(f"{parts_path}: missing (run the articulate stage first)")
+    manifest = read_manifest(cap.root / capture_name("manifest"))
+    pred = read_parts(parts_path)
+    m: dict = {"n_pred": sum(p.articulated for p in pred.parts)}
+    if not run.needs(manifest, "articulation", "gt"):
+        write_json(run.out("matches"), {"parts": [], "skipped": run.skipped["articulation"]})
+        return m
+    gt = read_parts(cap.root / capture_name("gt_parts"))
+    res, details = articulation_metrics(pred, gt, cap.cameras(cap.test))
+    if res["n_pred"] - res["n_ignored"] == 0:
+        run.skip("precision", "no articulated part predicted")
+        res.pop("precision")
+    if res["n_gt"] == 0:
+        run.skip("recall", "the ground truth has no articulated part")
+        res.pop("recall")
+    if "ea_score" not in res:
+        run.skip("ea_score", "no correctly predicted revolute part is visible in a test view")
+    write_json(run.out("matches"), {"parts": details})
+    m.update(res)
+    return m

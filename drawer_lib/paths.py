@@ -1,0 +1,113 @@
+"""Where every output of the pipeline lives: the one place that spells a file or folder name.
+
+Outputs of scene ``S`` live under ``<paths.out>/S/`` (``paths.out`` is a config key, default
+``out``); :data:`LAYOUT` gives every name below that, relative to the scene folder, by stage.
+``dvc.yaml`` reads it (``vars: - drawer_lib/paths.py:LAYOUT``, then ``${LAYOUT.mesh.mesh}``),
+stages and tests go through :class:`ScenePaths`, and a stage writes its files through
+``run.out(key)`` (:meth:`drawer_lib.runner.StageRun.out`). The names are literals so that DVC,
+which parses this file without running it, can read them.
+
+A geometry comparison variant ``v`` (the ``geometry@S-v`` stages) keeps its ``sdf/`` and
+``mesh/`` under ``S/geometry/v/``; an appearance variant ``v`` writes ``S/appearance/v/``.
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+LAYOUT = {
+    "capture": {  # the capture format (DESIGN §4); every sub-folder is its own DVC output
+        "dir": "capture",
+        "transforms": "capture/transforms.json",
+        "manifest": "capture/manifest.json",
+        "images": "capture/images",
+        "depth": "capture/depth",
+        "mono_depth": "capture/mono_depth",
+        "mono_normal": "capture/mono_normal",
+        "detections": "capture/detections",
+        "sparse": "capture/sparse",
+        "sparse_points": "capture/sparse/points3d.ply",
+        "gt": "capture/gt",
+        "gt_parts": "capture/gt/parts.json",
+        "gt_mesh": "capture/gt/mesh.ply",
+        "gt_mesh_instances": "capture/gt/mesh_instances.npy",
+        "gt_instances": "capture/gt/instances",
+    },
+    "sdf": {"dir": "sdf", "field": "sdf/field.pt"},
+    "mesh": {"dir": "mesh", "mesh": "mesh/mesh.ply"},
+    "geometry": {"dir": "geometry"},  # geometry/<variant>/ holds sdf/ and mesh/ as above
+    "decompose": {"dir": "decompose", "segments": "decompose/segments.json",
+                  "face_labels": "decompose/face_labels.npz", "mesh": "decompose/perception_mesh.ply"},
+    "articulate": {"dir": "articulate", "parts": "articulate/parts.json", "decisions": "articulate/decisions.json"},
+    "evaluate": {"dir": "evaluate", "matches": "evaluate/matches.json"},
+    "appearance": {"dir": "appearance", "model": "model", "renders": "renders"},  # inside appearance/<variant>/
+    "report": {"table": "table.md", "table_json": "table.json", "plot": "curves.png"},  # inside reports/<name>/
+    "metrics": "metrics.json",  # in every stage folder
+    "curve": "curve.csv",  # in every iterative stage's folder
+}
+
+CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
+
+
+def capture_name(key: str) -> str:
+    """A name inside the capture folder, e.g. ``capture_name("gt_mesh")`` -> ``gt/mesh.ply``."""
+    return LAYOUT["capture"][key].split("/", 1)[1]
+
+
+def stage_name(stage: str, key: str) -> str:
+    """The name of output ``key`` inside its stage folder: ``stage_name("sdf", "field")`` ->
+    ``field.pt``; ``metrics`` and ``curve`` for any stage."""
+    if key in ("metrics", "curve"):
+        return LAYOUT[key]
+    rel = LAYOUT[stage][key]
+    head = LAYOUT[stage]["dir"] + "/"
+    return rel[len(head):] if rel.startswith(head) else rel
+
+
+@dataclass(frozen=True)
+class ScenePaths:
+    """Absolute paths of one scene's outputs under ``out`` (the ``paths.out`` root). With
+    ``geometry_variant`` the ``sdf`` and ``mesh`` stages live under ``geometry/<variant>/``;
+    everything else (the capture first) is the scene's own."""
+
+    out: Path
+    scene: str
+    geometry_variant: str | None = None
+
+    @property
+    def root(self) -> Path:
+        return Path(self.out) / self.scene
+
+    def stage_dir(self, stage: str) -> Path:
+        if self.geometry_variant is not None and stage in ("sdf", "mesh"):
+            return self.root / LAYOUT["geometry"]["dir"] / self.geometry_variant / LAYOUT[stage]["dir"]
+        return self.root / LAYOUT[stage]["dir"]
+
+    def file(self, stage: str, key: str) -> Path:
+        return self.stage_dir(stage) / stage_name(stage, key)
+
+    def metrics(self, stage: str) -> Path:
+        return self.stage_dir(stage) / LAYOUT["metrics"]
+
+    def appearance_dir(self, variant: str) -> Path:
+        return self.root / LAYOUT["appearance"]["dir"] / variant
+
+    # the files later stages read
+    @property
+    def capture(self) -> Path:
+        return self.stage_dir("capture")
+
+    @property
+    def field(self) -> Path:
+        return self.file("sdf", "field")
+
+    @property
+    def mesh(self) -> Path:
+        return self.file("mesh", "mesh")
+
+    @property
+    def decompose(self) -> Path:
+        return self.stage_dir("decompose")
+
+    @property
+    def parts(self) -> Path:
+        return self.file("articulate", "parts")

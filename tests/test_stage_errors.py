@@ -1,0 +1,56 @@
+"""Bad input to the stages not covered by their own test files: each ends with one line
+``error: <message naming the file or key>``, exit code 2, and no output. (capture, sdf, mesh,
+decompose, articulate and appearance: see tests/capture, tests/sdf, tests/perception,
+tests/splat.)"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+from helpers import run_stage
+
+
+def _assert_named_error(r, *names):
+    assert r.returncode == 2, (r.returncode, r.stderr[-3000:])
+    last = [ln for ln in r.stderr.strip().splitlines() if ln.strip()][-1]
+    assert last.startswith("error: "), last
+    for n in names:
+        assert n in last, (n, last)
+    assert "Traceback" not in r.stderr
+
+
+def test_evaluate_names_a_malformed_parts_file(tmp_path, exact_capture):
+    scene = tmp_path / "out" / "kitchen_tiny"
+    shutil.copytree(exact_capture[0], scene / "capture")
+    (scene / "articulate").mkdir()
+    parts = json.loads((scene / "capture" / "gt" / "parts.json").read_text())
+    parts["parts"][0]["axis"]["direction"] = [0.0, 0.0, 0.0]
+    (scene / "articulate" / "parts.json").write_text(json.dumps(parts))
+    _assert_named_error(run_stage("evaluate", tmp_path), "parts.json", "axis.direction")
+    assert not (scene / "evaluate").exists()
+
+
+def test_report_stages_without_metrics_name_the_folder(tmp_path):
+    (tmp_path / "out").mkdir()
+    for stage in ("geometry_table", "ablation"):
+        _assert_named_error(run_stage(stage, tmp_path), str(tmp_path / "out"))
+        assert not (tmp_path / "reports").exists()
+
+
+def test_misspelt_scene_key_is_named(tmp_path, exact_capture):
+    import yaml
+
+    from helpers import ROOT
+
+    conf = tmp_path / "conf"  # -cd adds a config dir after conf/: the scene needs a new name
+    (conf / "scene").mkdir(parents=True)
+    scene = yaml.safe_load((ROOT / "conf" / "scene" / "kitchen_tiny.yaml").read_text())
+    scene["synth"]["camera"]["n_frame"] = scene["synth"]["camera"].pop("n_frames")
+    (conf / "scene" / "typo.yaml").write_text(yaml.safe_dump(scene))
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-m", "stages.capture", "-cd", str(conf), "scene=typo",
+                        f"paths.out={tmp_path / 'out'}"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    _assert_named_error(r, "n_frame", "typo.yaml")
+    assert not (tmp_path / "out" / "typo").exists()
