@@ -77,3 +77,10 @@ def write_ns_capture(src: Path, out: Path, dist=NS_DIST, quality: int = 95) -> N
           "k1": dist[0], "k2": dist[1], "p1": dist[2], "p2": dist[3], "camera_model": "OPENCV", "frames": frames,
           "applied_transform": [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0]]}
     (out / "transforms.json").write_text(json.dumps(tf, indent=4))
+
+
+def scene_paths(tmp: Path, scene: str = "kitchen_tiny"):
+    """Where :func:`run_stage` puts ``scene``'s outputs (``paths.out`` = ``tmp/out``)."""
+    from drawer_lib.paths import ScenePaths
+
+    return ScenePaths(tmp / "out", scene)

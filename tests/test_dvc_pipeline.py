@@ -13,6 +13,8 @@ import pytest
 import yaml
 from helpers import ROOT
 
+from drawer_lib.paths import LAYOUT, ScenePaths, capture_name
+
 pytestmark = pytest.mark.dvc
 
 IGNORE = shutil.ignore_patterns(".venv", "out", "multirun", "outputs", ".git", "cache", "tmp", "__pycache__",
@@ -68,29 +70,31 @@ def repo(tmp_path_factory):
 def test_repro_builds_capture_then_does_nothing(repo):
     d, run = repo
     r = run("dvc", "repro")
-    cap = d / "out" / "kitchen_tiny" / "capture"
-    for sub in ("transforms.json", "manifest.json", "metrics.json", "images", "depth", "gt/parts.json", "gt/mesh.ply"):
-        assert (cap / sub).exists(), sub
-    m = json.loads((cap / "metrics.json").read_text())
+    sp = ScenePaths(d / "out", "kitchen_tiny")
+    cap = sp.capture
+    for key in ("transforms", "manifest", "images", "depth", "gt_parts", "gt_mesh"):
+        assert (cap / capture_name(key)).exists(), key
+    m = json.loads(sp.metrics("capture").read_text())
     assert m["n_frames"] == 12 and "wall_s" in m
-    stamp = (cap / "metrics.json").stat().st_mtime_ns
+    stamp = sp.metrics("capture").stat().st_mtime_ns
     r = run("dvc", "repro")
     assert "Data and pipelines are up to date." in r.stdout
     assert "Running stage" not in r.stdout
-    assert (cap / "metrics.json").stat().st_mtime_ns == stamp
+    assert sp.metrics("capture").stat().st_mtime_ns == stamp
     shown = json.dumps(json.loads(run("dvc", "metrics", "show", "--json").stdout))
     assert "n_frames" in shown and "fscore_2cm" in shown and "chamfer_l1" in shown
-    for sub in ("sdf/field.pt", "sdf/curve.csv", "mesh/mesh.ply", "geometry/tsdf/mesh/metrics.json"):
-        assert (d / "out" / "kitchen_tiny" / sub).exists(), sub
-    table = json.loads((d / "reports" / "geometry" / "table.json").read_text())
+    tsdf = ScenePaths(d / "out", "kitchen_tiny", "tsdf")
+    for p in (sp.field, sp.stage_dir("sdf") / LAYOUT["curve"], sp.mesh, tsdf.metrics("mesh")):
+        assert p.exists(), p
+    table = json.loads((d / "reports" / "geometry" / LAYOUT["report"]["table_json"]).read_text())
     assert set(table["kitchen_tiny"]) == {"neural (selected)", "tsdf"}
-    for sub in ("decompose/segments.json", "articulate/parts.json", "evaluate/matches.json"):
-        assert (d / "out" / "kitchen_tiny" / sub).exists(), sub
-    ev = json.loads((d / "out" / "kitchen_tiny" / "evaluate" / "metrics.json").read_text())
+    for p in (sp.file("decompose", "segments"), sp.parts, sp.file("evaluate", "matches")):
+        assert p.exists(), p
+    ev = json.loads(sp.metrics("evaluate").read_text())
     assert "recall" in ev and ev["n_gt"] > 0
-    abl = json.loads((d / "reports" / "ablation" / "table.json").read_text())
+    abl = json.loads((d / "reports" / "ablation" / LAYOUT["report"]["table_json"]).read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
-    assert (d / "out" / "kitchen_tiny" / "appearance" / "movable_gs_ste" / "model" / "gaussians.ply").exists()
+    assert (sp.appearance_dir("movable_gs_ste") / LAYOUT["appearance"]["model"] / "gaussians.ply").exists()
 
 
 def test_stage_reads_params_yaml(repo):
@@ -102,7 +106,7 @@ def test_stage_reads_params_yaml(repo):
     st = run("dvc", "status").stdout
     assert "capture@kitchen_tiny" in st and "modified:           capture" in st
     run("dvc", "repro")
-    t = json.loads((d / "out" / "kitchen_tiny" / "capture" / "transforms.json").read_text())
+    t = json.loads((ScenePaths(d / "out", "kitchen_tiny").capture / capture_name("transforms")).read_text())
     assert len(t["test_filenames"]) == 4  # 12 frames, every 3rd
     run("git", "checkout", "params.yaml")
     run("dvc", "repro")  # back to the committed params (restored from the run cache)
@@ -112,7 +116,7 @@ def test_exp_run_set_param_changes_the_result(repo):
     d, run = repo
     sets = [a for p in FAST_PARAMS + ["capture.split.test_every=6"] for a in ("-S", p)]
     run("dvc", "exp", "run", *sets)  # exp run recomposes params.yaml from conf/ + these
-    t = json.loads((d / "out" / "kitchen_tiny" / "capture" / "transforms.json").read_text())
+    t = json.loads((ScenePaths(d / "out", "kitchen_tiny").capture / capture_name("transforms")).read_text())
     assert len(t["test_filenames"]) == 2
     assert "test_every: 6" in (d / "params.yaml").read_text()
 
@@ -130,17 +134,17 @@ def test_whole_dag_on_a_distorted_nerfstudio_capture(tmp_path_factory, exact_cap
     params = [p for p in FAST_PARAMS if not p.startswith(("scenes=", "geometry_variants="))]
     d, run = make_repo(tmp_path_factory, params + ["scenes=[ns_distorted]", "geometry_variants=[]"], prepare)
     run("dvc", "repro")
-    out = d / "out" / "ns_distorted"
-    for sub in ("capture/transforms.json", "sdf/field.pt", "mesh/mesh.ply", "decompose/segments.json",
-                "articulate/parts.json", "evaluate/metrics.json", "appearance/movable_gs_ste/model/gaussians.ply",
-                "appearance/textured_mesh/metrics.json"):
-        assert (out / sub).exists(), sub
-    man = json.loads((out / "capture" / "manifest.json").read_text())
+    sp = ScenePaths(d / "out", "ns_distorted")
+    for p in (sp.capture / capture_name("transforms"), sp.field, sp.mesh, sp.file("decompose", "segments"), sp.parts,
+              sp.metrics("evaluate"), sp.appearance_dir("movable_gs_ste") / LAYOUT["appearance"]["model"] / "gaussians.ply",
+              sp.appearance_dir("textured_mesh") / LAYOUT["metrics"]):
+        assert p.exists(), p
+    man = json.loads((sp.capture / capture_name("manifest")).read_text())
     assert man["details"]["intrinsics"]["undistorted"] and man["has"]["depth"] is False
-    assert json.loads((out / "capture" / "transforms.json").read_text())["camera_model"] == "PINHOLE"
-    sdf = json.loads((out / "sdf" / "metrics.json").read_text())
+    assert json.loads((sp.capture / capture_name("transforms")).read_text())["camera_model"] == "PINHOLE"
+    sdf = json.loads(sp.metrics("sdf").read_text())
     assert "depth_loss" in sdf["skipped"] and "geometry_curve_metrics" in sdf["skipped"]
-    assert json.loads((out / "decompose" / "metrics.json").read_text())["source"] == "geometric"
-    ev = json.loads((out / "evaluate" / "metrics.json").read_text())
+    assert json.loads(sp.metrics("decompose").read_text())["source"] == "geometric"
+    ev = json.loads(sp.metrics("evaluate").read_text())
     assert "precision" not in ev and "articulation" in ev["skipped"]
     assert "Data and pipelines are up to date." in run("dvc", "repro").stdout

@@ -74,3 +74,46 @@ def test_main_guard_exit_code(capsys):
         bad()
     assert e.value.code == 2
     assert "error: transforms.json: frame 3 is broken" in capsys.readouterr().err
+
+
+def test_leftovers_of_interrupted_stages_are_cleaned_and_half_swaps_restored(tmp_path):
+    import os
+    import subprocess
+
+    from drawer_lib.runner import clean_stale
+
+    scene = tmp_path / "scene"
+    dead = subprocess.Popen(["true"])
+    dead.wait()  # a pid that no longer runs
+    (scene / ".sdf.tmp").mkdir(parents=True)
+    (scene / ".sdf.tmp" / ".owner").write_text(str(dead.pid))
+    (scene / ".decompose.tmp").mkdir()  # died before it wrote its owner
+    (scene / ".appearance.tmp").mkdir()
+    (scene / ".appearance.tmp" / ".owner").write_text(str(os.getppid()))  # a live writer elsewhere
+    (scene / ".mesh.old").mkdir()  # died between the two renames of a successful run
+    (scene / ".mesh.old" / "mesh.ply").write_text("ply")
+    with stage_run("articulate", scene / "articulate", seed=0) as run:
+        (run.dir / "parts.json").write_text("{}")
+    left = sorted(p.name for p in scene.iterdir())
+    assert left == [".appearance.tmp", "articulate", "mesh"], left
+    assert (scene / "mesh" / "mesh.ply").read_text() == "ply"
+    assert clean_stale(tmp_path / "nowhere") == []
+
+
+def test_a_terminated_stage_removes_its_temporary_folder(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    code = (f"from drawer_lib.runner import stage_run\nimport time\n"
+            f"with stage_run('sdf', {str(tmp_path / 's' / 'sdf')!r}, seed=0) as run:\n"
+            f"    (run.dir / 'field.pt').write_text('half')\n    print('ready', flush=True)\n    time.sleep(60)\n")
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "ready"
+    assert (tmp_path / "s" / ".sdf.tmp").is_dir()
+    p.send_signal(signal.SIGTERM)
+    p.wait(timeout=30)
+    t = time.perf_counter()
+    assert p.returncode != 0 and time.perf_counter() - t < 30
+    assert sorted(x.name for x in (tmp_path / "s").iterdir()) == []

@@ -6,9 +6,10 @@ import json
 import shutil
 
 import pytest
-from helpers import run_stage
+from helpers import run_stage, scene_paths
 
 from drawer_lib.io.parts import read_parts
+from drawer_lib.paths import capture_name
 
 
 @pytest.fixture()
@@ -16,7 +17,7 @@ def project(tmp_path, exact_capture):
     scene = tmp_path / "out" / "kitchen_tiny"
     shutil.copytree(exact_capture[0], scene / "capture")
     (scene / "mesh").mkdir()
-    shutil.copy(scene / "capture" / "gt" / "mesh.ply", scene / "mesh" / "mesh.ply")
+    shutil.copy(scene / "capture" / capture_name("gt_mesh"), scene_paths(tmp_path).mesh)
     return tmp_path
 
 
@@ -24,14 +25,14 @@ def test_stages_write_parts_and_articulation_metrics(project):
     for st in ("decompose", "articulate", "evaluate"):
         r = run_stage(st, project)
         assert r.returncode == 0, r.stderr[-3000:]
-    out = project / "out" / "kitchen_tiny"
-    dm = json.loads((out / "decompose" / "metrics.json").read_text())
+    sp = scene_paths(project)
+    dm = json.loads(sp.metrics("decompose").read_text())
     assert dm["source"] == "detections" and dm["n_segments"] > 0 and dm["wall_s"] > 0
-    parts = read_parts(out / "articulate" / "parts.json")  # the DESIGN §5 format, validated
+    parts = read_parts(sp.parts)  # the DESIGN §5 format, validated
     assert any(p.articulated for p in parts.parts)
-    ev = json.loads((out / "evaluate" / "metrics.json").read_text())
+    ev = json.loads(sp.metrics("evaluate").read_text())
     assert ev["precision"] == 1.0 and ev["recall"] == 1.0
-    dec = json.loads((out / "articulate" / "decisions.json").read_text())
+    dec = json.loads(sp.file("articulate", "decisions").read_text())
     assert {s["segment"] for s in dec["segments"]} == set(range(dm["n_segments"]))
 
 
@@ -46,14 +47,14 @@ def test_geometry_only_path_runs_and_scene_without_gt_skips_evaluation(project):
     for st, extra in (("decompose", ["decompose.source=geometric"]), ("articulate", []), ("evaluate", [])):
         r = run_stage(st, project, *extra)
         assert r.returncode == 0, r.stderr[-3000:]
-    out = project / "out" / "kitchen_tiny"
-    assert json.loads((out / "decompose" / "metrics.json").read_text())["source"] == "geometric"
-    ev = json.loads((out / "evaluate" / "metrics.json").read_text())
+    sp = scene_paths(project)
+    assert json.loads(sp.metrics("decompose").read_text())["source"] == "geometric"
+    ev = json.loads(sp.metrics("evaluate").read_text())
     assert "precision" not in ev and "ground truth" in ev["skipped"]["articulation"]
 
 
 def test_bad_input_is_named_and_leaves_no_output(project):
-    (project / "out" / "kitchen_tiny" / "mesh" / "mesh.ply").unlink()
+    scene_paths(project).mesh.unlink()
     r = run_stage("decompose", project)
     assert r.returncode == 2 and "mesh.ply" in r.stderr and "missing" in r.stderr
     assert not (project / "out" / "kitchen_tiny" / "decompose").exists()

@@ -6,7 +6,9 @@ import json
 import shutil
 
 import pytest
-from helpers import run_stage
+from helpers import run_stage, scene_paths
+
+from drawer_lib.paths import LAYOUT, ScenePaths
 
 FAST = ["sdf.neural.steps=16", "sdf.neural.eval_every=8", "sdf.neural.sampling.groups=4",
         "sdf.neural.sampling.rays_per_group=32", "sdf.neural.monocal.refine_steps=4",
@@ -32,17 +34,17 @@ def read_curve(p):
 def test_neural_sdf_then_mesh(project):
     r = run("sdf", project)
     assert r.returncode == 0, r.stderr[-3000:]
-    d = project / "out" / "kitchen_tiny" / "sdf"
-    m = json.loads((d / "metrics.json").read_text())
+    sp = scene_paths(project)
+    m = json.loads(sp.metrics("sdf").read_text())
     assert m["method"] == "neural" and m["steps"] == 16 and m["wall_s"] > 0 and m["depth_source"] == "sensor"
-    rows = read_curve(d / "curve.csv")
+    rows = read_curve(sp.stage_dir("sdf") / LAYOUT["curve"])
     assert [int(x["step"]) for x in rows] == [8, 16]
     assert all(float(x["wall_s"]) > 0 and x["chamfer_l1"] != "" and x["test_depth_l1"] != "" for x in rows)
     r = run("mesh", project)
     assert r.returncode == 0, r.stderr[-3000:]
-    mm = json.loads((project / "out" / "kitchen_tiny" / "mesh" / "metrics.json").read_text())
+    mm = json.loads(sp.metrics("mesh").read_text())
     assert mm["faces_out"] > 0 and 0 <= mm["fscore_2cm"] <= 1 and mm["chamfer_l1"] > 0 and mm["wall_s"] > 0
-    assert (project / "out" / "kitchen_tiny" / "mesh" / "mesh.ply").stat().st_size > 0
+    assert sp.mesh.stat().st_size > 0
 
 
 def test_tsdf_and_mono_variants_and_the_table(project):
@@ -51,14 +53,14 @@ def test_tsdf_and_mono_variants_and_the_table(project):
         assert r.returncode == 0, r.stderr[-3000:]
         r = run("mesh", project, f"+geometry_variant={v}")
         assert r.returncode == 0, r.stderr[-3000:]
-    g = project / "out" / "kitchen_tiny" / "geometry"
-    t = json.loads((g / "tsdf" / "mesh" / "metrics.json").read_text())
+    tsdf, mono = (ScenePaths(project / "out", "kitchen_tiny", v) for v in ("tsdf", "neural_mono"))
+    t = json.loads(tsdf.metrics("mesh").read_text())
     assert t["field"] == "tsdf" and t["chamfer_l1"] < 0.01 and t["fscore_2cm"] > 0.9  # exact depth
-    s = json.loads((g / "neural_mono" / "sdf" / "metrics.json").read_text())
+    s = json.loads(mono.metrics("sdf").read_text())
     assert s["depth_source"] == "calibrated_mono" and "monocal" in s
     assert s["skipped"]["sensor_depth"].startswith("priors.depth = mono")
-    assert len(read_curve(g / "tsdf" / "sdf" / "curve.csv")) == 1  # the TSDF is one point
-    if not (project / "out" / "kitchen_tiny" / "mesh" / "metrics.json").exists():
+    assert len(read_curve(tsdf.stage_dir("sdf") / LAYOUT["curve"])) == 1  # the TSDF is one point
+    if not scene_paths(project).metrics("mesh").exists():
         pytest.skip("needs test_neural_sdf_then_mesh")
     r = run("geometry_table", project, "sdf=neural", "scenes=[kitchen_tiny]")
     assert r.returncode == 0, r.stderr[-3000:]
@@ -112,12 +114,12 @@ def test_without_ground_truth_the_curve_has_time_and_loss_and_metrics_are_skippe
     (cap / "manifest.json").write_text(json.dumps(man))
     r = run("sdf", tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
-    d = tmp_path / "out" / "kitchen_tiny" / "sdf"
-    rows = read_curve(d / "curve.csv")
+    sp = scene_paths(tmp_path)
+    rows = read_curve(sp.stage_dir("sdf") / LAYOUT["curve"])
     assert [int(x["step"]) for x in rows] == [8, 16]
     assert all(x["chamfer_l1"] == "" and float(x["loss"]) > 0 and float(x["wall_s"]) > 0 for x in rows)
-    assert "capture has no gt" in json.dumps(json.loads((d / "metrics.json").read_text())["skipped"])
+    assert "capture has no gt" in json.dumps(json.loads(sp.metrics("sdf").read_text())["skipped"])
     r = run("mesh", tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
-    mm = json.loads((tmp_path / "out" / "kitchen_tiny" / "mesh" / "metrics.json").read_text())
+    mm = json.loads(sp.metrics("mesh").read_text())
     assert "chamfer_l1" not in mm and "metrics_vs_gt" in mm["skipped"] and mm["faces_out"] > 0

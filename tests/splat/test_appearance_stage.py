@@ -6,8 +6,9 @@ import shutil
 
 import numpy as np
 import pytest
-from helpers import run_stage
+from helpers import run_stage, scene_paths
 
+from drawer_lib.paths import LAYOUT, capture_name
 from drawer_lib.splat.ply import read_gaussian_ply
 
 FAST = ["appearance.steps=12", "appearance.eval_every=6", "appearance.max_faces=4000", "appearance.texture_cell=0.03",
@@ -25,7 +26,7 @@ def project(tmp_path_factory, exact_capture):
     scene = tmp / "out" / "kitchen_tiny"
     shutil.copytree(exact_capture[0], scene / "capture")
     (scene / "mesh").mkdir()
-    shutil.copy(scene / "capture" / "gt" / "mesh.ply", scene / "mesh" / "mesh.ply")
+    shutil.copy(scene / "capture" / capture_name("gt_mesh"), scene_paths(tmp).mesh)
     return tmp
 
 
@@ -33,12 +34,13 @@ def project(tmp_path_factory, exact_capture):
 def test_variants_run_and_write_their_outputs(project, variant):
     r = run("appearance", project, f"appearance_variant={variant}")
     assert r.returncode == 0, r.stderr[-3000:]
-    d = project / "out" / "kitchen_tiny" / "appearance" / variant
-    m = json.loads((d / "metrics.json").read_text())
+    sp = scene_paths(project)
+    d = sp.appearance_dir(variant)
+    m = json.loads((d / LAYOUT["metrics"]).read_text())
     assert m["variant"] == variant and 5 < m["psnr"] < 60 and 0 < m["ssim"] <= 1 and 0 <= m["lpips"] < 1
-    n_test = len(json.loads((project / "out" / "kitchen_tiny" / "capture" / "transforms.json").read_text())["test_filenames"])
-    assert len(list((d / "renders").glob("*.png"))) == n_test
-    assert (d / "curve.csv").read_text().startswith("step,wall_s,test_psnr")
+    n_test = len(json.loads((sp.capture / capture_name("transforms")).read_text())["test_filenames"])
+    assert len(list((d / LAYOUT["appearance"]["renders"]).glob("*.png"))) == n_test
+    assert (d / LAYOUT["curve"]).read_text().startswith("step,wall_s,test_psnr")
     if variant == "textured_mesh":
         assert (d / "model" / "textured_mesh.ply").exists()
         return
@@ -52,7 +54,7 @@ def test_variants_run_and_write_their_outputs(project, variant):
 
 def test_ablation_table(project):
     for v in ("movable_gs_ste", "textured_mesh"):
-        if not (project / "out" / "kitchen_tiny" / "appearance" / v / "metrics.json").exists():
+        if not (scene_paths(project).appearance_dir(v) / LAYOUT["metrics"]).exists():
             pytest.skip("needs the variant runs")
     r = run("ablation", project, "scenes=[kitchen_tiny]", "appearance_variants=[textured_mesh,movable_gs_ste]")
     assert r.returncode == 0, r.stderr[-3000:]
