@@ -34,6 +34,7 @@ def main() -> None:
 
     from drawer_lib.config.typed import to_typed
     from drawer_lib.io.capture import load_capture
+    from drawer_lib.paths import ScenePaths
     from drawer_lib.splat.config import AppearanceConfig
     from drawer_lib.splat.train import prepare, train_gaussians
 
@@ -42,11 +43,11 @@ def main() -> None:
                                                        f"appearance.steps={args.steps}", "appearance.eval_every=1000000",
                                                        "appearance.strategy.refine_start=0"])
     app = to_typed(AppearanceConfig, cfg.appearance, "appearance")
-    out = ROOT / cfg.paths.out / args.scene
-    mesh_path = out / "mesh" / "mesh.ply"
+    sp = ScenePaths(ROOT / cfg.paths.out, args.scene)
+    mesh_path = sp.mesh
     if not mesh_path.is_file():
         raise SystemExit(f"{mesh_path}: missing (run `dvc repro mesh@{args.scene}` first)")
-    cap = load_capture(out / "capture")
+    cap = load_capture(sp.capture)
     sc = prepare(cap, trimesh.load(mesh_path, process=False), app)
     prof = cProfile.Profile()
     prof.enable()

@@ -73,6 +73,7 @@ def run_one(scene: str, regime: str, clip: str, seed: int) -> dict:
 
     from drawer_lib.config.typed import to_typed
     from drawer_lib.io.capture import load_capture
+    from drawer_lib.paths import ScenePaths
     from drawer_lib.perturb import displace_along_normals
     from drawer_lib.splat.anchored import bound_activity
     from drawer_lib.splat.config import AppearanceConfig
@@ -83,9 +84,9 @@ def run_one(scene: str, regime: str, clip: str, seed: int) -> dict:
         cfg = compose(config_name="config", overrides=[f"scene={scene}", f"appearance_variant={CLIPS[clip]}",
                                                        f"seed={seed}", *overrides])
     app = to_typed(AppearanceConfig, cfg.appearance, "appearance")
-    out = ROOT / cfg.paths.out / scene
-    cap = load_capture(out / "capture")
-    mesh_path = out / ("geometry/tsdf/mesh/mesh.ply" if anchor == "tsdf" else "mesh/mesh.ply")
+    sp = ScenePaths(ROOT / cfg.paths.out, scene, "tsdf" if anchor == "tsdf" else None)
+    cap = load_capture(sp.capture)
+    mesh_path = sp.mesh
     if not mesh_path.is_file():
         raise SystemExit(f"error: {mesh_path} is missing (dvc repro the {'geometry' if anchor == 'tsdf' else 'mesh'} "
                          f"stage of {scene} first)")

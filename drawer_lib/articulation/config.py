@@ -11,7 +11,8 @@ class FrontsConfig:
     """Front rectangles (:mod:`drawer_lib.articulation.fronts`). A planar segment whose normal
     lies within ``vertical_deg`` of horizontal is a front candidate; the plane is re-fitted on
     the points within ``inlier_m`` of it; the rectangle spans the ``extent_percentile`` ..
-    100 - ``extent_percentile`` percentiles of the points (corrected for a uniform spread).
+    100 - ``extent_percentile`` percentiles of the points (corrected for a uniform spread), its
+    centre on the panel's outer face: the ``outer_percentile`` of the inliers' offsets.
     With detections, each side is instead the median over the matched masks (cast onto the
     plane; ``mask_percentile`` extents) whose pixels on that side stay ``mask_border_px`` away
     from the image border, when at least ``mask_min_frames`` masks say so. Coplanar fronts
@@ -25,6 +26,7 @@ class FrontsConfig:
     max_size: float = 1.6
     inlier_m: float = 0.01
     extent_percentile: float = 2.0
+    outer_percentile: float = 90.0
     mask_percentile: float = 1.0
     mask_min_frames: int = 2
     mask_border_px: int = 2
@@ -54,8 +56,9 @@ class HandlesConfig:
     the mesh's edge length) with ``mask_min_points``; ``evidence`` weighs them by ``count`` or
     by ``view_rate`` (hits / views seeing the face). Every point goes to the front it lies
     deepest in, at most ``max_gap`` outside its rectangle and from ``below_plane`` behind to
-    ``max`` in front of it; a cluster spanning ``max_span`` of a front is not a handle. A handle
-    is round when its longer extent is below ``round_aspect`` x the shorter + ``round_slack``.
+    ``max`` in front of it; a cluster spanning ``max_span`` of a front is not a handle. A handle's
+    extents are its ``extent_percentile`` .. 100 - ``extent_percentile`` ranges; it is round
+    when the longer is below ``round_aspect`` x the shorter + ``round_slack``.
     ``stacked_pulls``: a horizontal pull in the gap between two stacked fronts (coplanar within
     ``stacked_plane_tol``, overlapping over ``stacked_min_overlap``) that both take goes to the
     lower one (:func:`~drawer_lib.articulation.handles.resolve_stacked_pulls`)."""
@@ -74,6 +77,7 @@ class HandlesConfig:
     flat_deg: float = 30.0
     full_span: float = 0.8
     row_bin: float = 0.01
+    extent_percentile: float = 5.0
     round_aspect: float = 1.8
     round_slack: float = 0.01
     stacked_pulls: bool = True

@@ -72,7 +72,7 @@ def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: Float[np.ndarray
     lo, hi = np.percentile(uv, pct, 0), np.percentile(uv, 100 - pct, 0)
     mid = (lo + hi) / 2
     lo, hi = _uniform_extent(lo, hi, pct)
-    off = float(np.percentile((Q - c) @ n, 90))  # the outer face of the panel
+    off = float(np.percentile((Q - c) @ n, cfg.outer_percentile))  # the outer face of the panel
     center = c + mid[0] * u + mid[1] * v + off * n
     size = hi - lo
     return Front(tuple(center.tolist()), tuple(n.tolist()), tuple(u.tolist()), (float(size[0]), float(size[1])))

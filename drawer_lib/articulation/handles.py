@@ -134,8 +134,8 @@ def resolve_stacked_pulls(fronts: list[Front], cands: Candidates, edge_frac: flo
 
 def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: HandlesConfig) -> Handle | None:
     """The handle's place (median of its points [M, 3] in the front's unit square) and shape
-    (5th-95th percentile extents: round when the longer is below ``round_aspect`` x the shorter
-    + ``round_slack``)."""
+    (``extent_percentile`` extents: round when the longer is below ``round_aspect`` x the
+    shorter + ``round_slack``)."""
     if pts is None:
         return None
     c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
@@ -144,8 +144,9 @@ def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: Hand
     pu, pv = rel @ u, rel @ v
     a_u = float(np.clip((np.median(pu) + hw) / max(2 * hw, 1e-9), 0, 1))
     a_v = float(np.clip((np.median(pv) + hh) / max(2 * hh, 1e-9), 0, 1))
-    eu = np.percentile(pu, 95) - np.percentile(pu, 5)
-    ev = np.percentile(pv, 95) - np.percentile(pv, 5)
+    lo, hi = cfg.extent_percentile, 100 - cfg.extent_percentile
+    eu = np.percentile(pu, hi) - np.percentile(pu, lo)
+    ev = np.percentile(pv, hi) - np.percentile(pv, lo)
     round_ = max(eu, ev) < cfg.round_aspect * min(eu, ev) + cfg.round_slack
     orient = "round" if round_ else ("horizontal" if eu > ev else "vertical")
     return Handle(a_u, a_v, orient, int(len(pts)), source)

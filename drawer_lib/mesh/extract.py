@@ -13,7 +13,7 @@ import torch.nn.functional as F
 import trimesh
 from skimage.measure import marching_cubes
 
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 
 SdfFn = Callable[[torch.Tensor], torch.Tensor]  # [N, 3] -> [N], no gradient
@@ -33,7 +33,7 @@ def evaluate(sdf_fn: SdfFn, pts: torch.Tensor, chunk: int = 1 << 16) -> torch.Te
     flat = pts.reshape(-1, 3)
     out = torch.cat([sdf_fn(c) for c in flat.split(chunk)]) if len(flat) else torch.zeros(0)
     if not torch.all(torch.isfinite(out)):
-        raise FloatingPointError("SDF evaluation produced non-finite values")
+        raise NonFiniteError("SDF evaluation produced non-finite values")
     return out.reshape(pts.shape[:-1])
 
 
@@ -94,7 +94,7 @@ def marching_cubes_mesh(values: np.ndarray, lo: np.ndarray, cell: float, level: 
     An empty mesh when the level set does not cross the (masked) grid."""
     v = np.asarray(values, np.float32)
     if not np.all(np.isfinite(v)):
-        raise FloatingPointError("marching_cubes_mesh: non-finite SDF values")
+        raise NonFiniteError("marching_cubes_mesh: non-finite SDF values")
     if mask is not None and not mask.any():
         return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
     if not (v.min() < level < v.max()):

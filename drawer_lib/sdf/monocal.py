@@ -28,7 +28,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-from drawer_lib.errors import ConfigError, InputError
+from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 
 
@@ -203,7 +203,7 @@ def calibrate_mono_depth(images: Tensor, mono: Tensor, intr: Intrinsics, c2w: Te
             e, ok = cost(i, z[i : i + 1])
             final.append(float(torch.where(ok, e.clamp_max(cfg.clamp), torch.full_like(e, cfg.clamp)).mean()))
     if not torch.isfinite(z).all() or (z <= 0).any():
-        raise FloatingPointError("monocular calibration produced non-positive or non-finite depth")
+        raise NonFiniteError("monocular calibration produced non-positive or non-finite depth")
     return MonoCalResult(z.detach(), pa.detach().exp(), pb.detach().exp(), corr.detach(),
                          float(np.mean(search_cost)) if search_cost else float("nan"),
                          float(np.mean(final)) if final else float("nan"), nbrs)

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.splat.render import Gaussians
 
 
@@ -32,7 +32,7 @@ def write_gaussian_ply(path: Path, g: Gaussians) -> None:
                 torch.log(g.scales.double().clamp_min(1e-30)), g.quats / g.quats.norm(dim=-1, keepdim=True)]
         data = torch.cat([c.double() for c in cols], 1).numpy().astype("<f4")
     if not np.all(np.isfinite(data)):
-        raise FloatingPointError(f"{path}: refusing to write non-finite Gaussian parameters")
+        raise NonFiniteError(f"{path}: refusing to write non-finite Gaussian parameters")
     names = gaussian_ply_fields(K - 1)
     header = "ply\nformat binary_little_endian 1.0\n" + f"element vertex {n}\n"
     header += "".join(f"property float {name}\n" for name in names) + "end_header\n"

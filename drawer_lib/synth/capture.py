@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drawer_lib.errors import NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics, invert_rigid, opencv_to_opengl
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture, Frame, split_every, write_transforms
@@ -80,7 +81,7 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
             renderer.set_camera(c2w_gl)
             rgb, z, ent, handle = renderer.render()
             if not np.all(np.isfinite(z)):
-                raise FloatingPointError(f"{scene}: non-finite rendered depth in frame {stem}")
+                raise NonFiniteError(f"{scene}: non-finite rendered depth in frame {stem}")
             w2c = invert_rigid(poses_cv[k])
             _, n_cam, _ = rc.depth_normals(intr, w2c)
             fr = {"file_path": f"{D['images']}/{stem}.png"}

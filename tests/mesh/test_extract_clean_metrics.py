@@ -8,7 +8,7 @@ import pytest
 import torch
 import trimesh
 
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.mesh.clean import CleanConfig, clean_mesh
 from drawer_lib.mesh.extract import cube_mask, frustum_mask, grid_shape, marching_cubes_mesh, sdf_grid
@@ -58,7 +58,7 @@ def test_no_crossing_or_empty_mask_gives_an_empty_mesh():
     assert len(marching_cubes_mesh(v, np.zeros(3), 0.1).faces) == 0
     v[2, 2, 2] = -1
     assert len(marching_cubes_mesh(v, np.zeros(3), 0.1, mask=np.zeros(v.shape, bool)).faces) == 0
-    with pytest.raises(FloatingPointError):
+    with pytest.raises(NonFiniteError):
         marching_cubes_mesh(np.full((3, 3, 3), np.nan), np.zeros(3), 0.1)
 
 
