@@ -9,6 +9,7 @@ from jaxtyping import Float
 
 from drawer_lib.articulation.config import HandlesConfig
 from drawer_lib.articulation.fronts import abutting_edges
+from drawer_lib.errors import InputError
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front
 from drawer_lib.perception.views import connected_components
@@ -181,8 +182,6 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
     ``face_centers`` [F, 3]; ``edge_length``: the mesh's typical edge (m); ``handle_hits`` [F]:
     in how many views a "handle" mask covers each face; ``face_views`` [F]: in how many views
     each face is visible (needed by ``evidence: view_rate``)."""
-    from drawer_lib.errors import InputError
-
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
     hit_faces = np.nonzero(handle_hits >= cfg.min_hits)[0] if handle_hits is not None else np.zeros(0, np.int64)

@@ -1,7 +1,6 @@
 """The appearance losses as a named dict (nerfstudio's ``get_loss_dict``): each term's weight is a
 config key (``appearance.losses``), so turning a term off is a one-line experiment."""
 
-import torch
 import torch.nn.functional as F
 from torch import Tensor
 

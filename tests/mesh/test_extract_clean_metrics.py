@@ -8,7 +8,7 @@ import pytest
 import torch
 import trimesh
 
-from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.errors import NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.mesh.clean import CleanConfig, clean_mesh
 from drawer_lib.mesh.extract import cube_mask, frustum_mask, grid_shape, marching_cubes_mesh, sdf_grid
