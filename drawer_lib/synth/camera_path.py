@@ -26,7 +26,8 @@ def _smooth_noise(rng: np.random.Generator, s: np.ndarray, dims: int, cycles=(1.
 
 
 def camera_path(layout: KitchenLayout, cfg: CameraPathConfig, rng: np.random.Generator) -> np.ndarray:
-    """OpenCV camera-to-world matrices [C, 4, 4] of a capture of ``layout``."""
+    """OpenCV camera-to-world matrices [C, 4, 4] of a capture of ``layout`` (the path is laid
+    out in the kitchen's own frame, then moved by ``layout.pose``)."""
     n = cfg.n_frames
     s = np.linspace(0.0, 1.0, n)
     x_lo, x_hi = layout.run_x
@@ -61,4 +62,4 @@ def camera_path(layout: KitchenLayout, cfg: CameraPathConfig, rng: np.random.Gen
         if ang > 0:
             T[:3, :3] = T[:3, :3] @ axis_angle_to_matrix(w / ang, ang)  # shake in the camera frame
         poses[k] = T
-    return poses
+    return np.einsum("ij,njk->nik", layout.pose, poses)  # kitchen frame -> world

@@ -140,7 +140,10 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
             "poses": {"kind": "exact"},
         },
         world_frame={"metric_scale": True, "gravity": True,
-                     "how": "synthetic world: metres, +z up, back wall at y = 0, fronts facing -y"},
+                     "how": "synthetic world: metres, +z up, back wall at y = 0, fronts facing -y" if
+                     np.allclose(layout.pose, np.eye(4)) else
+                     "synthetic world: metres, +z up, the kitchen turned about z by "
+                     f"{np.rad2deg(np.arctan2(layout.pose[1, 0], layout.pose[0, 0])):.2f} deg"},
         gt_part_kinds=kinds,
     )
     metrics = {

@@ -9,10 +9,11 @@ from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
 
-BASE_TYPES = ("door", "double_door", "drawers", "drawer_door", "flap_down")
-WALL_TYPES = ("door", "double_door", "flap_up", "flap_down", "sliding")
+BASE_TYPES = ("door", "double_door", "drawers", "drawer_door", "flap_down", "oven", "dishwasher")
+WALL_TYPES = ("door", "double_door", "flap_up", "flap_down", "sliding", "sliding_single")
+TALL_TYPES = ("split", "fridge1", "fridge2", "pantry")
 FIXED_TYPES = ("appliance", "sink")
-HANDLE_STYLES = ("bar", "knob", "edge")
+HANDLE_STYLES = ("bar", "knob", "edge", "small_knob", "recessed", "none")
 
 
 def _check(cond: bool, msg: str) -> None:
@@ -22,7 +23,22 @@ def _check(cond: bool, msg: str) -> None:
 
 @dataclass(frozen=True)
 class LayoutConfig:
-    """What the kitchen is made of. Module types are drawn with the given weights."""
+    """What the kitchen is made of. Module types are drawn with the given weights.
+
+    Base modules: door, double_door, drawers, drawer_door, flap_down, oven (a bottom-hinged
+    appliance door over a drawer, under a control strip), dishwasher (a full-height
+    bottom-hinged door); wall modules: door, double_door, flap_up, flap_down, sliding (two panels
+    on two tracks), sliding_single (one panel on a rail in front of an open shelf: no partner
+    to see); tall units: split (upper door over a drawer or door), fridge1 (one full-height
+    door), fridge2 (fridge over freezer door), pantry (one full-height door with the kitchen's
+    handle style). Handle styles (one per kitchen): bar, knob, edge, small_knob, recessed (a
+    slot in the front), none; ``no_handle_p``: each front independently has no handle
+    (push-to-open). ``microwaves``: microwave ovens on the counter (a side-hinged door), each
+    turned by a yaw drawn from ``microwave_yaw_deg``; ``yaw_deg``: the whole kitchen turns by a
+    yaw drawn from this range about the vertical (cabinets not aligned with the world axes).
+    The defaults of the keys added after the first release (tall_types, tall_width,
+    microwaves, microwave_yaw_deg, yaw_deg, no_handle_p) leave earlier kitchens unchanged.
+    """
 
     base_modules: int = 4
     wall_modules: int = 3
@@ -48,6 +64,12 @@ class LayoutConfig:
     tall_height: float = 2.05  # tall units' carcass height above the plinth
     front_gap: float = 0.003
     front_thickness: float = 0.019
+    tall_types: dict[str, float] = field(default_factory=lambda: {"split": 1.0})
+    tall_width: float = 0.6
+    microwaves: int = 0
+    microwave_yaw_deg: list[float] = field(default_factory=lambda: [-35.0, 35.0])
+    yaw_deg: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    no_handle_p: float = 0.0
 
     def __post_init__(self):
         _check(self.base_modules >= 1, f"layout.base_modules = {self.base_modules} must be >= 1")
@@ -65,6 +87,15 @@ class LayoutConfig:
         for s in self.handle_styles:
             _check(s in HANDLE_STYLES, f"layout.handle_styles: unknown style {s!r} (known: {HANDLE_STYLES})")
         _check(bool(self.handle_styles), "layout.handle_styles is empty")
+        for k in self.tall_types:
+            _check(k in TALL_TYPES, f"layout.tall_types: unknown type {k!r} (known: {TALL_TYPES})")
+        _check(any(w > 0 for w in self.tall_types.values()), "layout.tall_types: no type has a positive weight")
+        _check(0.4 <= self.tall_width <= 1.0, f"layout.tall_width = {self.tall_width} must be in [0.4, 1.0] m")
+        _check(0 <= self.microwaves <= 3, f"layout.microwaves = {self.microwaves} must be in [0, 3]")
+        for name in ("microwave_yaw_deg", "yaw_deg"):
+            r = getattr(self, name)
+            _check(len(r) == 2 and -90.0 <= r[0] <= r[1] <= 90.0, f"layout.{name} = {r} must be [lo, hi] within [-90, 90]")
+        _check(0.0 <= self.no_handle_p < 1.0, f"layout.no_handle_p = {self.no_handle_p} must be in [0, 1)")
         _check(bool(self.module_widths) and all(0.25 <= w <= 1.0 for w in self.module_widths),
                f"layout.module_widths {self.module_widths} must be in [0.25, 1.0] m")
         _check(0 < self.front_gap < 0.02, f"layout.front_gap = {self.front_gap} must be in (0, 0.02) m")

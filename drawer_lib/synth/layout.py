@@ -19,7 +19,7 @@ import numpy as np
 from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Front
 from drawer_lib.synth import textures as tex
-from drawer_lib.synth.config import BASE_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
+from drawer_lib.synth.config import BASE_TYPES, TALL_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
 from drawer_lib.synth.meshes import UVMesh, box_between, concat, cylinder, lathe, torus_arc
 
 OUT = np.array([0.0, -1.0, 0.0])  # outward normal of every front
@@ -64,6 +64,24 @@ class Entity:
         return concat([p.mesh for p in self.pieces if roles is None or p.role in roles])
 
 
+def transform_entity(e: Entity, R: np.ndarray, t: np.ndarray) -> None:
+    """Move entity ``e`` in place by the rigid transform x -> R x + t (pieces, axis, front)."""
+    e.pieces = [Piece(p.mesh.transformed(R, t), p.material, p.role) for p in e.pieces]
+    if e.axis_origin is not None:
+        e.axis_origin = R @ e.axis_origin + t
+    if e.axis_dir is not None:
+        e.axis_dir = R @ e.axis_dir
+    if e.front is not None:
+        f = e.front
+        e.front = Front(tuple((R @ np.asarray(f.center) + t).tolist()), tuple((R @ np.asarray(f.normal)).tolist()),
+                        tuple((R @ np.asarray(f.u)).tolist()), f.size)
+
+
+def yaw_matrix(deg: float) -> np.ndarray:
+    a = np.deg2rad(deg)
+    return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+
+
 @dataclass(frozen=True)
 class Material:
     name: str
@@ -92,6 +110,7 @@ class KitchenLayout:
     front_y: float  # y of the base fronts' outer faces
     wall_front_y: float
     seed: int
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4))  # kitchen frame -> world (a yaw about z)
 
     @property
     def static(self) -> Entity:
@@ -200,11 +219,12 @@ def _handle(style: str, p: np.ndarray, along: np.ndarray, length: float, edge: s
             cylinder(b, b + OUT * s, 0.0045, 12),
             cylinder(a - along * 0.014 + OUT * s, b + along * 0.014 + OUT * s, 0.0065, 16),
         ]
-    if style == "knob":
-        stem = cylinder(p, p + OUT * 0.02, 0.006, 12)
-        cap = lathe(np.array([[0, 0], [0.011, 0], [0.016, 0.007], [0.014, 0.015], [0, 0.017]]), 20)
+    if style in ("knob", "small_knob"):
+        k = 1.0 if style == "knob" else 0.55  # a small knob: 18 mm across, 19 mm proud
+        stem = cylinder(p, p + OUT * 0.02 * k, 0.006 * k, 12)
+        cap = lathe(np.array([[0, 0], [0.011, 0], [0.016, 0.007], [0.014, 0.015], [0, 0.017]]) * k, 20)
         R = np.stack([U, V, OUT], axis=1)  # lathe axis (+z) -> OUT, right-handed
-        return [stem, cap.transformed(R, p + OUT * 0.016)]
+        return [stem, cap.transformed(R, p + OUT * 0.016 * k)]
     if style == "edge":
         assert r is not None and edge is not None
         L, lip, depth = length, 0.022, 0.012
@@ -230,8 +250,10 @@ def _handle(style: str, p: np.ndarray, along: np.ndarray, length: float, edge: s
 class _Builder:
     """Accumulates entities while the layout is laid out."""
 
-    def __init__(self, rng: np.random.Generator, L: LayoutConfig, handle_style: str):
-        self.rng, self.L, self.style = rng, L, handle_style
+    def __init__(self, rng: np.random.Generator, L: LayoutConfig, handle_style: str, rng2: np.random.Generator):
+        # draws for the keys added later (tall types, microwaves, yaw, missing handles, the new
+        # module types' options) come from their own stream ``rng2``, so older kitchens stay the same
+        self.rng, self.L, self.style, self.rng2 = rng, L, handle_style, rng2
         self.static = Entity("static", "static", "background")
         self.entities: list[Entity] = []
         self.counts: dict[str, int] = {}
@@ -244,24 +266,52 @@ class _Builder:
         self.counts[family] = k + 1
         return f"{family}_{k}"
 
-    def _handle_pieces(self, r: Rect, where: str, along: str, length: float) -> list[Piece]:
-        """Place a handle on rect r. ``where``: top|bottom|center|left|right|mid-left|...;
-        ``along``: 'h' or 'v' (direction of a bar or edge pull)."""
+    def _front_pieces(self, r: Rect, material: str, where: str, along: str, length: float) -> list[Piece]:
+        """The front panel of rect r with its handle (:meth:`_handle_pieces`), in the kitchen's
+        handle style, or none with probability ``no_handle_p``; a ``recessed`` pull is a slot
+        through the panel's outer 12 mm (the panel is built around it) with the pocket's back
+        as the handle."""
         tf, style = self.L.front_thickness, self.style
+        if self.L.no_handle_p > 0 and self.rng2.random() < self.L.no_handle_p:
+            style = "none"
+        if style == "none":
+            return [Piece(_panel(r, tf), material, "front")]
+        if style != "recessed":
+            return [Piece(_panel(r, tf), material, "front")] + self._handle_pieces(r, where, along, length)
+        x, z, length = self._handle_place(r, where, along, length)
+        half = (length / 2, 0.014) if along == "h" else (0.014, length / 2)
+        sx0, sx1 = max(x - half[0], r.x0 + 0.02), min(x + half[0], r.x1 - 0.02)
+        sz0, sz1 = max(z - half[1], r.z0 + 0.02), min(z + half[1], r.z1 - 0.02)
+        y0, y1, yp = r.y_out, r.y_out + tf, r.y_out + 0.012
+        boxes = [([r.x0, y0, r.z0], [sx0, y1, r.z1]), ([sx1, y0, r.z0], [r.x1, y1, r.z1]),
+                 ([sx0, y0, r.z0], [sx1, y1, sz0]), ([sx0, y0, sz1], [sx1, y1, r.z1])]
+        out = [Piece(box_between(lo, hi), material, "front") for lo, hi in boxes]
+        return out + [Piece(box_between([sx0, yp, sz0], [sx1, y1, sz1]), "handle", "handle")]
+
+    def _handle_place(self, r: Rect, where: str, along: str, length: float) -> tuple[float, float, float]:
+        """(x, z) of a handle's centre on rect r and its length. A handle stays on its front: one
+        whose end would stand more than 1 cm beyond it (a long bar placed near an edge) moves
+        inward until 2 cm of the front remain past its end."""
         inset = 0.045
         c = r.center
         x = {"left": r.x0 + inset, "right": r.x1 - inset}.get(where.split("-")[-1], c[0])
         top_z = r.z1 - max(0.045, min(r.h / 2 - 0.001, 0.06))
         z = {"top": top_z, "bottom": r.z0 + max(0.045, min(r.h / 2 - 0.001, 0.06))}.get(where.split("-")[0], c[2])
-        d = U if along == "h" else V
         length = min(length, (r.w if along == "h" else r.h) - 0.06)
-        # a handle stays on its front: one whose end would stand more than 1 cm beyond it (a long
-        # bar placed near an edge) moves inward until 2 cm of the front remain past its end
         lo, hi = (r.x0, r.x1) if along == "h" else (r.z0, r.z1)
         at = x if along == "h" else z
         if at - length / 2 < lo - 0.01 or at + length / 2 > hi + 0.01:
             at = float(np.clip(at, lo + length / 2 + 0.02, hi - length / 2 - 0.02))
             x, z = (at, z) if along == "h" else (x, at)
+        return float(x), float(z), float(length)
+
+    def _handle_pieces(self, r: Rect, where: str, along: str, length: float) -> list[Piece]:
+        """Place a handle on rect r. ``where``: top|bottom|center|left|right|mid-left|...;
+        ``along``: 'h' or 'v' (direction of a bar or edge pull)."""
+        tf, style = self.L.front_thickness, self.style
+        c = r.center
+        d = U if along == "h" else V
+        x, z, length = self._handle_place(r, where, along, length)
         if style == "edge":
             # a pull profile on the edge nearest to where a hand would pull
             if along == "v":
@@ -295,8 +345,7 @@ class _Builder:
         default_label = {"drawer": "drawer", "false_front": "drawer", "door": "door", "flap": "door",
                          "sliding": "door", "appliance": "door"}[family]
         e = Entity(self._name(family), family, label or default_label)
-        e.pieces.append(Piece(_panel(r, tf), material, "front"))
-        e.pieces += self._handle_pieces(r, handle_where, handle_along, handle_len)
+        e.pieces += self._front_pieces(r, material, handle_where, handle_along, handle_len)
         e.front = r.front()
         if fixed:
             return self._push(e)
@@ -414,6 +463,23 @@ def _base_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
             door(lower, "left" if b.rng.random() < 0.5 else "right")
     elif kind == "flap_down":
         _flap(b, full, mat, "bottom")
+    elif kind == "oven":
+        # a storage drawer at the bottom, the oven door (bottom-hinged, a bar near its top edge)
+        # and a control strip above it
+        zd = z0 + 0.14
+        zs = z1 - 0.1
+        drawer(Rect(full.x0, full.x1, full.z0, zd - g / 2, y))
+        door_r = Rect(full.x0, full.x1, zd + g / 2, zs - g / 2, y)
+        e = b.add_front("flap", door_r, "appliance", hinge="bottom", limit=float(np.pi / 2), handle_where="top",
+                        handle_along="h", handle_len=door_r.w * 0.75, label="door")
+        win = Rect(door_r.x0 + 0.06, door_r.x1 - 0.06, door_r.z0 + 0.08, door_r.z1 - 0.12, y)
+        e.pieces.append(Piece(box_between([win.x0, y - 0.001, win.z0], [win.x1, y + 0.002, win.z1]), "glass", "front"))
+        b.add_static(box_between([full.x0, y, zs + g / 2], [full.x1, y + L.front_thickness, full.z1]), "appliance")
+    elif kind == "dishwasher":
+        # a full-height bottom-hinged door: integrated (the kitchen's front) or stainless
+        material = mat if b.rng2.random() < 0.5 else "appliance"
+        b.add_front("flap", full, material, hinge="bottom", limit=float(np.pi / 2), handle_where="top",
+                    handle_along="h", handle_len=min(0.4, full.w * 0.6), label="door")
     elif kind == "appliance":
         e = b.add_front("appliance", full, "appliance", fixed=True, handle_where="top", handle_along="h",
                         handle_len=full.w * 0.7)
@@ -456,6 +522,23 @@ def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
                     handle_along="v", handle_len=0.128)
         b.add_front("sliding", inner, mat, limit=travel, slide_dir=-1.0, handle_where="bottom-right",
                     handle_along="v", handle_len=0.128)
+    elif kind == "sliding_single":
+        # one panel on a rail in front of the cabinet, covering one half; the other half is an
+        # open shelf it slides over (no partner front to see)
+        rail_h = 0.03
+        ys = y - tf - 0.004
+        b.add_static(box_between([x0, ys - 0.012, z1 - rail_h], [x1, y, z1]), "handle")  # the rail
+        xm = (x0 + x1) / 2
+        ov = 0.02
+        left = b.rng2.random() < 0.5
+        panel = (Rect(full.x0, xm + ov / 2, full.z0, z1 - rail_h - g, ys) if left
+                 else Rect(xm - ov / 2, full.x1, full.z0, z1 - rail_h - g, ys))
+        travel = (x1 - xm) - ov - 0.02
+        where = ["center-left", "center-right"][int(b.rng2.integers(2))]
+        b.add_front("sliding", panel, mat, limit=travel, slide_dir=+1.0 if left else -1.0, handle_where=where,
+                    handle_along="v", handle_len=0.128)
+        zm = (z0 + z1) / 2  # a shelf in the open cabinet
+        b.add_static(box_between([x0 + T_CARCASS, -D, zm - 0.009], [x1 - T_CARCASS, -T_BACK, zm + 0.009]), "carcass")
     else:
         raise ConfigError(f"unknown wall module type {kind!r} (known: {WALL_TYPES})")
 
@@ -468,6 +551,13 @@ def _tall_unit(b: _Builder, x0: float, x1: float, top: float) -> None:
     zm = z0 + 0.72
     hinge = "left" if b.rng.random() < 0.5 else "right"
     free = "right" if hinge == "left" else "left"
+    if set(L.tall_types) != {"split"}:
+        names = [k for k, w in L.tall_types.items() if w > 0]
+        p = np.array([L.tall_types[k] for k in names], np.float64)
+        kind = names[b.rng2.choice(len(names), p=p / p.sum())]
+        if kind != "split":
+            _tall_doors(b, kind, Rect(x0 + g / 2, x1 - g / 2, z0 + g / 2, top - g / 2, y), hinge)
+            return
     upper = Rect(x0 + g / 2, x1 - g / 2, zm + g / 2, top - g / 2, y)
     lower = Rect(x0 + g / 2, x1 - g / 2, z0 + g / 2, zm - g / 2, y)
     style = b.style
@@ -481,6 +571,57 @@ def _tall_unit(b: _Builder, x0: float, x1: float, top: float) -> None:
         b.add_front("door", lower, "front_base", hinge=hinge, limit=_revolute_limit(b), handle_where=f"top-{free}",
                     handle_along="v", handle_len=0.3)
     b.style = style
+
+
+def _tall_doors(b: _Builder, kind: str, full: Rect, hinge: str) -> None:
+    """A tall unit's doors: fridge1 (one full-height door, a long bar), fridge2 (a fridge door
+    over a freezer door, bars by the gap between them), pantry (one full-height door in the
+    kitchen's handle style, at hand height)."""
+    free = "right" if hinge == "left" else "left"
+    g = b.L.front_gap
+    lim = _revolute_limit(b)
+    if kind == "pantry":
+        b.add_front("door", full, "front_base", hinge=hinge, limit=lim, handle_where=f"center-{free}",
+                    handle_along="v", handle_len=0.3)
+        return
+    style = b.style
+    b.style = "bar"  # fridge doors carry long bars
+    if kind == "fridge1":
+        b.add_front("door", full, "front_base", hinge=hinge, limit=lim, handle_where=f"center-{free}",
+                    handle_along="v", handle_len=0.8)
+    else:  # fridge2
+        zm = full.z0 + 0.38 * full.h
+        upper = Rect(full.x0, full.x1, zm + g / 2, full.z1, full.y_out)
+        lower = Rect(full.x0, full.x1, full.z0, zm - g / 2, full.y_out)
+        b.add_front("door", upper, "front_base", hinge=hinge, limit=lim, handle_where=f"bottom-{free}",
+                    handle_along="v", handle_len=0.5)
+        b.add_front("door", lower, "front_base", hinge=hinge, limit=lim, handle_where=f"top-{free}",
+                    handle_along="v", handle_len=0.35)
+    b.style = style
+
+
+def _microwave(b: _Builder, at: np.ndarray, yaw_deg: float) -> None:
+    """A microwave oven standing on the counter at ``at`` (the centre of its base), turned by
+    ``yaw_deg``: a static body with a control panel and a door hinged on its left edge."""
+    W, Dm, Hm = 0.5, 0.36, 0.29
+    R, t = yaw_matrix(yaw_deg), np.asarray(at, np.float64)
+    body = Entity("tmp", "static", "")
+    body.pieces.append(Piece(box_between([-W / 2, -Dm / 2, 0.0], [W / 2, Dm / 2, Hm]), "appliance", "structure"))
+    body.pieces.append(Piece(box_between([W / 2 - 0.12, -Dm / 2 - 0.006, 0.02], [W / 2 - 0.01, -Dm / 2, Hm - 0.02]),
+                             "glass", "structure"))
+    transform_entity(body, R, t)
+    b.static.pieces += body.pieces
+    td = 0.02
+    door = Rect(-W / 2 + 0.008, W / 2 - 0.135, 0.015, Hm - 0.015, -Dm / 2 - td)
+    style = b.style
+    if style in ("knob", "small_knob"):
+        b.style = "bar"  # a microwave door has no knob
+    e = b.add_front("door", door, "appliance", hinge="left", limit=float(np.deg2rad(100.0)),
+                    handle_where="center-right", handle_along="v", handle_len=0.18)
+    b.style = style
+    e.pieces.append(Piece(box_between([door.x0 + 0.04, door.y_out - 0.001, door.z0 + 0.04],
+                                      [door.x1 - 0.07, door.y_out + 0.002, door.z1 - 0.04]), "glass", "front"))
+    transform_entity(e, R, t)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -558,9 +699,9 @@ def _sample_types(rng: np.random.Generator, n: int, weights: dict[str, float], r
 
 
 def _width(rng: np.random.Generator, L: LayoutConfig, kind: str) -> float:
-    if kind in ("double_door", "sink", "sliding"):
+    if kind in ("double_door", "sink", "sliding", "sliding_single"):
         return float(rng.choice(L.double_widths))
-    if kind == "appliance":
+    if kind in ("appliance", "oven", "dishwasher"):
         return 0.6
     return float(rng.choice(L.module_widths))
 
@@ -571,7 +712,7 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     L = cfg.layout
     materials = _sample_materials(np.random.default_rng([cfg.seed, 1]))
     style = L.handle_styles[rng.integers(len(L.handle_styles))]
-    b = _Builder(rng, L, style)
+    b = _Builder(rng, L, style, np.random.default_rng([cfg.seed, 3]))
 
     shared = [t for t in L.require_types if t in BASE_TYPES and t in WALL_TYPES]
     req_base = [t for t in L.require_types if t in BASE_TYPES and t not in WALL_TYPES] + shared
@@ -597,7 +738,7 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
 
     top = L.plinth_height + L.tall_height
     x_lo, x_hi = 0.0, run
-    tall_w = 0.6
+    tall_w = L.tall_width
     sides = [] if L.tall_units == 0 else (["left", "right"] if L.tall_units == 2 else [["left", "right"][rng.integers(2)]])
     for side in sides:
         if side == "left":
@@ -630,7 +771,19 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     b.add_static(box_between([room_lo[0] - th, room_lo[1], 0.0], [room_lo[0], 0.0, ROOM_HEIGHT]), "wall")
     b.add_static(box_between([room_hi[0], room_lo[1], 0.0], [room_hi[0] + th, 0.0, ROOM_HEIGHT]), "wall")
 
-    _place_objects(b, L.n_objects, 0.0, run, -D + 0.02, -0.03, zc + L.counter_thickness, [])
+    occupied: list[tuple[float, float, float]] = []
+    for _ in range(L.microwaves):
+        r_mw = 0.31  # footprint radius
+        for _try in range(100):
+            x = b.rng2.uniform(r_mw, run - r_mw) if run > 2 * r_mw else run / 2
+            if all(abs(x - ox) > r_mw + orad + 0.03 for ox, _, orad in occupied):
+                break
+        else:
+            continue
+        yaw = b.rng2.uniform(*L.microwave_yaw_deg)
+        _microwave(b, np.array([x, -D / 2 - 0.01, zc + L.counter_thickness]), yaw)
+        occupied.append((x, -D / 2 - 0.01, r_mw))
+    _place_objects(b, L.n_objects, 0.0, run, -D + 0.02, -0.03, zc + L.counter_thickness, occupied)
 
     # instance ids: articulated parts, then fixed fronts, then objects (GT instance maps use these)
     iid = 1
@@ -643,5 +796,14 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     lights = []
     for k, lx in enumerate(np.linspace(x_lo + 0.3, x_hi - 0.3, 3)):
         lights.append(Light((float(lx), -1.3, 2.45), (0.0, 0.35, -1.0), 0.5, k != 1))
+    pose = np.eye(4)
+    if tuple(L.yaw_deg) != (0.0, 0.0):  # the kitchen turned about the vertical through the run's centre
+        R = yaw_matrix(b.rng2.uniform(*L.yaw_deg))
+        c = np.array([(x_lo + x_hi) / 2, 0.0, 0.0])
+        pose[:3, :3], pose[:3, 3] = R, c - R @ c
+        for e in [b.static] + b.entities:
+            transform_entity(e, R, pose[:3, 3])
+        lights = [Light(tuple((R @ np.asarray(li.pos) + pose[:3, 3]).tolist()), tuple((R @ np.asarray(li.dir)).tolist()),
+                        li.diffuse, li.castshadow) for li in lights]
     return KitchenLayout([b.static] + b.entities, materials, lights, room_lo, room_hi, (x_lo, x_hi),
-                         -D - tf, -L.wall_depth - tf, cfg.seed)
+                         -D - tf, -L.wall_depth - tf, cfg.seed, pose)

@@ -171,7 +171,7 @@ def torus_arc(R: float, r: float, arc: float = np.pi, n_major: int = 16, n_minor
         UV.append([0.0, 0.0])
         for j in range(n_minor):
             a, b = i * w + j, i * w + j + 1
-            F.append([ci, a, b] if sgn > 0 else [ci, b, a])
+            F.append([ci, b, a] if sgn > 0 else [ci, a, b])
     mesh = UVMesh(np.asarray(V), np.asarray(F, np.int64), np.asarray(UV))
     if mesh.volume() < 0:
         mesh = UVMesh(mesh.verts, mesh.faces[:, ::-1].copy(), mesh.uv)

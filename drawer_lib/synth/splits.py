@@ -1,0 +1,73 @@
+"""The benchmark splits of procedural kitchens: a ``train`` split that perception is tuned on
+and a ``test`` split it never is (other seeds *and* other distributions of sizes, styles and
+counts). Kitchen ``k`` of a split is a fixed function of ``(split, k)``.
+
+| | train (seeds 100 + k) | test (seeds 500 + k) |
+|---|---|---|
+| modules | 3-5 base, 2-4 wall, 0-1 tall, 0-1 fixed fronts | 3-6 base, 2-5 wall, 0-2 tall, 0-2 fixed fronts |
+| widths (single / double) | 0.40-0.60 / 0.8-0.9 m | 0.30-0.35, 0.55-0.80 / 0.7, 1.0, 1.1 m |
+| carcass | 0.72 high, 0.58 deep, 19 mm fronts, 3 mm gaps | 0.78 high, 0.62 deep, 22 mm fronts, 4 mm gaps |
+| wall cabinets | 0.70 high, from 1.45 m | 0.60 or 0.85 high, from 1.50 m |
+| tall units | 2.05 m, 0.60 wide | 2.10 m, 0.70 or 0.75 wide |
+| handle styles (one per kitchen) | bar, knob, edge, recessed | bar, small_knob, edge, recessed |
+| fronts without a handle | 8 % | 15 % |
+| appliances | oven, dishwasher (weights 0.6), a microwave in half the kitchens | oven, dishwasher (1.0), a microwave in every kitchen |
+| kitchen yaw | +-25 deg | +-45 deg |
+| frames | 200x150 x 48, every 4th kitchen (k = 3, 7, ..) 320x240 x 60 | the same, at k = 1, 5, .. |
+
+Both splits draw every module type (the sliding door without a partner, fridges with one
+and two doors, pantry doors, ovens, dishwashers, microwaves); the test split's weights differ.
+"""
+
+import numpy as np
+
+SPLITS = ("train", "test")
+
+_CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
+_CAM_LARGE = {"n_frames": 60, "width": 320, "height": 240}
+
+
+def split_synth(split: str, k: int) -> dict:
+    """The ``synth`` block (a partial :class:`~drawer_lib.synth.config.SynthConfig` as a dict,
+    merged over the default kitchen) of kitchen ``k`` of ``split``."""
+    if split not in SPLITS:
+        raise ValueError(f"unknown split {split!r} (known: {SPLITS})")
+    if k < 0:
+        raise ValueError(f"kitchen index {k} must be >= 0")
+    g = np.random.default_rng([1000 if split == "train" else 5000, k])
+    if split == "train":
+        layout = {
+            "base_modules": int(g.integers(3, 6)), "wall_modules": int(g.integers(2, 5)),
+            "tall_units": int(g.integers(0, 2)), "fixed_fronts": int(g.integers(0, 2)),
+            "base_types": {"door": 2.0, "double_door": 1.0, "drawers": 2.0, "drawer_door": 1.5, "flap_down": 0.3,
+                           "oven": 0.6, "dishwasher": 0.6},
+            "wall_types": {"door": 2.0, "double_door": 1.0, "flap_up": 1.5, "flap_down": 0.3, "sliding": 1.0,
+                           "sliding_single": 0.6},
+            "tall_types": {"split": 1.0, "fridge1": 1.0, "fridge2": 1.0, "pantry": 1.0},
+            "handle_styles": ["bar", "knob", "edge", "recessed"],
+            "no_handle_p": 0.08,
+            "microwaves": int(g.integers(0, 2)),
+            "yaw_deg": [-25.0, 25.0],
+        }
+        camera = _CAM_LARGE if k % 4 == 3 else _CAM_SMALL
+        return {"seed": 100 + k, "layout": layout, "camera": dict(camera)}
+    layout = {
+        "base_modules": int(g.integers(3, 7)), "wall_modules": int(g.integers(2, 6)),
+        "tall_units": int(g.integers(0, 3)), "fixed_fronts": int(g.integers(0, 3)),
+        "module_widths": [0.3, 0.35, 0.55, 0.65, 0.7, 0.8], "double_widths": [0.7, 1.0, 1.1],
+        "base_types": {"door": 1.0, "double_door": 1.5, "drawers": 2.5, "drawer_door": 1.0, "flap_down": 0.1,
+                       "oven": 1.0, "dishwasher": 1.0},
+        "wall_types": {"door": 1.5, "double_door": 1.5, "flap_up": 1.0, "flap_down": 0.5, "sliding": 0.8,
+                       "sliding_single": 1.0},
+        "tall_types": {"split": 0.5, "fridge1": 1.0, "fridge2": 1.0, "pantry": 1.0},
+        "handle_styles": ["bar", "small_knob", "edge", "recessed"],
+        "no_handle_p": 0.15,
+        "microwaves": 1,
+        "yaw_deg": [-45.0, 45.0],
+        "base_depth": 0.62, "carcass_height": 0.78, "plinth_height": 0.12,
+        "wall_bottom": 1.5, "wall_height": [0.6, 0.85][int(g.integers(2))], "wall_depth": 0.35,
+        "tall_height": 2.1, "tall_width": [0.7, 0.75][int(g.integers(2))],
+        "front_gap": 0.004, "front_thickness": 0.022,
+    }
+    camera = _CAM_LARGE if k % 4 == 1 else _CAM_SMALL
+    return {"seed": 500 + k, "layout": layout, "camera": dict(camera)}
