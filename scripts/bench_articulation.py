@@ -1,23 +1,24 @@
 #!/usr/bin/env python
-"""Benchmark of scene decomposition + articulation over procedural kitchens of varied layouts.
+"""Benchmark of scene decomposition + articulation over procedural kitchens of two splits.
 
-For each of ``--n`` kitchens (seed 100 + k; 3-5 base modules, 2-4 wall modules, 0-1 tall units,
-0-1 fixed fronts; kitchen_small's camera) and each detection mode in ``--modes``:
+``--split train`` (tune on it) or ``--split test`` (never tuned on: other seeds, sizes, styles,
+counts; drawer_lib/synth/splits.py states both), kitchens 0..``--n``-1 of the split, each
+with every detection mode in ``--modes``:
 
-- ``noisy``: the default detector simulation (missed, merged, ragged, false masks, typed labels
-  with drawer/door confusions);
-- ``generic``: the same noise, every label generic (front / handle / object);
+- ``generic``: the default detector simulation (missed, merged, ragged, false masks), every
+  label generic (front / handle / object);
+- ``noisy``: the same noise with typed labels (drawer / door / ..., with confusions);
 - ``off``: no detections (decompose falls back to geometry);
 
 it renders the capture, fuses the sensor depth (TSDF, 2 cm: the fast geometry of the pipeline),
 meshes it, runs decompose + articulate with the default configs and scores the parts against the
 GT (DESIGN §6). Prints per-run rows and, per mode, precision / recall / EA-score (mean and worst
-scene) and pooled over all parts; writes ``<out>/results.json`` and ``<out>/summary.md``.
+scene) and pooled over all parts; writes ``<out>/<split>/results.json`` and ``summary.md``.
 
-    python scripts/bench_articulation.py [--n 20] [--modes noisy,generic,off] [--out /tmp/bench_articulation]
-    python scripts/bench_articulation.py --reuse     # after a perception change: same captures and meshes
-    python scripts/bench_articulation.py --reuse --kitchens 1,10 --modes noisy   # a subset
-    python scripts/bench_articulation.py --reuse --set articulate.handles.evidence=count
+    python scripts/bench_articulation.py --split train [--n 20] [--modes generic] [--out /tmp/bench_articulation]
+    python scripts/bench_articulation.py --split test --reuse   # after a perception change: same captures and meshes
+    python scripts/bench_articulation.py --split train --reuse --kitchens 1,10   # a subset
+    python scripts/bench_articulation.py --split train --reuse --set articulate.types.use_labels=false
                                      # a config variant: results_<overrides>.json / summary_<overrides>.md
 """
 
@@ -29,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -50,8 +52,9 @@ from drawer_lib.runner import StageRun  # noqa: E402
 from drawer_lib.sdf.config import SdfConfig  # noqa: E402
 from drawer_lib.sdf.io import load_field  # noqa: E402
 from drawer_lib.sdf.pipeline import run_sdf  # noqa: E402
+from drawer_lib.synth.splits import SPLITS, split_synth  # noqa: E402
 
-MODE_FILE = {"noisy": "noisy", "generic": "noisy_generic", "off": "off"}  # also the order of the summary
+MODE_FILE = {"generic": "noisy_generic", "noisy": "noisy", "off": "off"}  # also the order of the summary
 
 
 def compose(overrides: list[str]):
@@ -62,27 +65,28 @@ def compose(overrides: list[str]):
         return hcompose(config_name="config", overrides=overrides)
 
 
-def scene_overrides(k: int) -> list[str]:
-    g = np.random.default_rng(1000 + k)
-    return [f"scene.synth.seed={100 + k}", f"scene.synth.layout.base_modules={int(g.integers(3, 6))}",
-            f"scene.synth.layout.wall_modules={int(g.integers(2, 5))}",
-            f"scene.synth.layout.tall_units={int(g.integers(0, 2))}",
-            f"scene.synth.layout.fixed_fronts={int(g.integers(0, 2))}"]
-
-
-def one(k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...] = ()) -> dict:
-    cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *scene_overrides(k),
-                   *extra])
-    scene = to_typed(SceneConfig, cfg.scene, "scene", strict=False)
+def one(split: str, k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...] = (),
+        build_only: bool = False, articulate_only: bool = False) -> dict:
+    cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *extra])
+    scene_d = OmegaConf.to_container(cfg.scene, resolve=True)
+    for key, val in split_synth(split, k).items():  # the split's values replace kitchen_small's
+        if isinstance(val, dict):
+            scene_d["synth"][key].update(val)
+        else:
+            scene_d["synth"][key] = val
+    scene = to_typed(SceneConfig, scene_d, f"{split} kitchen {k}", strict=False)
     capcfg = to_typed(CaptureConfig, cfg.capture, "capture")
     d = out / f"k{k:02d}_{mode}"
     cap_dir = d / "capture"
     kept = reuse and (d / "mesh" / "mesh.ply").is_file()
+    redo = ("articulate",) if articulate_only and (d / "decompose" / "segments.json").is_file() else (
+        "decompose", "articulate")
     if kept:  # perception only, on the capture and mesh of an earlier run
-        for stage in ("decompose", "articulate"):
+        for stage in redo:
             shutil.rmtree(d / stage, ignore_errors=True)
         prev = json.loads((d / "row.json").read_text()) if (d / "row.json").is_file() else {}
-        times = {t: prev.get(t, float("nan")) for t in ("capture_s", "sdf_s", "mesh_s")}
+        times = {f"{t}_s": prev.get(f"{t}_s", float("nan")) for t in ("capture", "sdf", "mesh", "decompose")
+                 if t not in redo}
     else:
         if d.exists():
             shutil.rmtree(d)
@@ -98,16 +102,26 @@ def one(k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...
                                                     r)),
               ("articulate", lambda r: run_articulate(to_typed(ArticulateConfig, cfg.articulate, "articulate"), cap,
                                                       sp.decompose, r)))
-    for stage, fn in stages[2:] if kept else stages:
+    geo = {}
+    for stage, fn in stages[4 - len(redo):] if kept else stages:
+        if build_only and stage == "decompose":
+            break
         t = time.perf_counter()
         o = sp.stage_dir(stage)
         o.mkdir()
-        fn(StageRun(stage, o, o, 0))
+        m = fn(StageRun(stage, o, o, 0))
         times[f"{stage}_s"] = time.perf_counter() - t
+        if stage == "mesh":
+            geo = {k: m[k] for k in ("chamfer_l1", "fscore_2cm") if k in m}
+            (d / "geometry.json").write_text(json.dumps(geo))
+    if build_only:
+        return {}
+    if kept and (d / "geometry.json").is_file():
+        geo = json.loads((d / "geometry.json").read_text())
     res, details = articulation_metrics(read_parts(sp.parts), read_parts(cap_dir / capture_name("gt_parts")),
                                         cap.cameras(cap.test))
     (d / "matches.json").write_text(json.dumps(details, indent=1))
-    row = {"kitchen": k, "mode": mode, **res, **{t: round(v, 2) for t, v in times.items()},
+    row = {"kitchen": k, "mode": mode, **res, **{t: round(v, 2) for t, v in times.items()}, **geo,
            "eas": [r["ea_score"] for r in details if r.get("ea_score") is not None]}
     (d / "row.json").write_text(json.dumps(row))
     return row
@@ -115,8 +129,9 @@ def one(k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...
 
 def summary(rows: list[dict]) -> str:
     lines = ["| detections | kitchens | precision mean / worst | recall mean / worst | EA mean / worst scene | "
-             "pooled P / R (parts) | EA pooled (revolute parts) | s per kitchen (perception) |",
-             "|---|---|---|---|---|---|---|---|"]
+             "pooled P / R (parts) | EA pooled (revolute parts) | s per kitchen (perception) | "
+             "TSDF mesh: Chamfer mean / worst, F@2cm mean / worst |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for mode in dict.fromkeys(r["mode"] for r in rows):
         rs = [r for r in rows if r["mode"] == mode]
         P = [r["precision"] for r in rs if "precision" in r]
@@ -127,28 +142,36 @@ def summary(rows: list[dict]) -> str:
         n_gt = sum(r["n_gt"] for r in rs)
         eas = [e for r in rs for e in r["eas"]]
         per = np.mean([r["decompose_s"] + r["articulate_s"] for r in rs])
+        ch = [r["chamfer_l1"] for r in rs if "chamfer_l1" in r]
+        fs = [r["fscore_2cm"] for r in rs if "fscore_2cm" in r]
+        geo = f"{1000 * np.mean(ch):.1f} / {1000 * np.max(ch):.1f} mm, {np.mean(fs):.3f} / {np.min(fs):.3f}" if ch else "–"
         f = lambda v: f"{np.mean(v):.3f} / {np.min(v):.3f}" if v else "–"  # noqa: E731
         lines.append(f"| {mode} | {len(rs)} | {f(P)} | {f(R)} | {f(E)} | {n_cor / max(n_pred, 1):.3f} / "
                      f"{n_cor / max(n_gt, 1):.3f} ({n_cor}/{n_pred}, {n_cor}/{n_gt}) | "
-                     f"{(np.mean(eas) if eas else float('nan')):.4f} (n = {len(eas)}) | {per:.1f} |")
+                     f"{(np.mean(eas) if eas else float('nan')):.4f} (n = {len(eas)}) | {per:.1f} | {geo} |")
     return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--split", choices=SPLITS, required=True, help="drawer_lib/synth/splits.py")
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--kitchens", default="", help="comma-separated kitchen indices (instead of --start/--n)")
-    ap.add_argument("--modes", default="noisy,generic,off")
+    ap.add_argument("--modes", default="generic")
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_articulation"))
     ap.add_argument("--reuse", action="store_true",
                     help="rerun only decompose + articulate on the captures and meshes already under --out")
+    ap.add_argument("--build-only", action="store_true", help="captures and meshes only (no perception, no rows)")
+    ap.add_argument("--articulate-only", action="store_true",
+                    help="with --reuse: rerun articulate only, on the decompose outputs already there")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a Hydra override of the perception configs (repeatable); with --reuse on the same captures")
     a = ap.parse_args()
     bad = [o for o in a.set if not o.startswith(("decompose.", "articulate."))]
     if bad:
         sys.exit(f"--set {bad[0]}: only decompose.* / articulate.* overrides (the captures and meshes are shared)")
+    a.out = a.out / a.split
     a.out.mkdir(parents=True, exist_ok=True)
     tag = "".join("_" + "".join(c if c.isalnum() or c in ".=-" else "-" for c in o) for o in a.set)
     res_path = a.out / f"results{tag}.json"
@@ -163,12 +186,19 @@ def main() -> None:
             continue
         if a.set and not (a.out / f"k{k:02d}_{mode}" / "mesh" / "mesh.ply").is_file():
             sys.exit(f"--set needs the captures and meshes of a plain run under {a.out}: k{k:02d}_{mode} is missing")
-        r = one(k, mode, a.out, a.reuse or bool(a.set), tuple(a.set))
+        if a.build_only:
+            if not (a.out / f"k{k:02d}_{mode}" / "mesh" / "mesh.ply").is_file():
+                one(a.split, k, mode, a.out, build_only=True)
+                print(f"kitchen {k:2d} {mode}: built", flush=True)
+            continue
+        r = one(a.split, k, mode, a.out, a.reuse or bool(a.set), tuple(a.set), articulate_only=a.articulate_only)
         rows.append(r)
         res_path.write_text(json.dumps(rows, indent=1))
         print(f"kitchen {k:2d} {mode:8s} P {r.get('precision', float('nan')):.3f} R {r['recall']:.3f} "
               f"EA {r.get('ea_score', float('nan')):.4f} ({r['n_correct']}/{r['n_pred'] - r['n_ignored']} pred, "
               f"{r['n_gt']} GT) perception {r['decompose_s'] + r['articulate_s']:.1f} s", flush=True)
+    if a.build_only:
+        return
     rows.sort(key=lambda r: (list(MODE_FILE).index(r["mode"]), r["kitchen"]))
     md = summary(rows)
     (a.out / f"summary{tag}.md").write_text(md)

@@ -23,7 +23,7 @@ class FrontsConfig:
 
     vertical_deg: float = 25.0
     min_size: float = 0.08
-    max_size: float = 1.6
+    max_size: float = 2.6
     inlier_m: float = 0.01
     extent_percentile: float = 2.0
     outer_percentile: float = 90.0
@@ -94,22 +94,47 @@ class HandlesConfig:
             raise ConfigError("articulate.handles: min_hits, geo_min_points and mask_min_points must be >= 1")
 
 
+def _default_weights() -> dict[str, dict[str, float]]:
+    """Hand-set weights that reproduce the handle rule on clear cases; the shipped config
+    (conf/articulate/default.yaml) holds the ones fitted on the train split."""
+    return {
+        "drawer": {"handle": 1.0, "h_top": 1.0, "h_center_u": 1.0, "h_horizontal": 0.5, "lab_drawer": 2.0},
+        "door": {"handle": 1.0, "h_free": 2.5, "h_vertical": 0.5, "lab_door": 1.0},
+        "flap_top": {"handle": 1.0, "h_bottom": 2.0, "h_center_u": 0.5},
+        "flap_bottom": {"handle": 1.0, "h_top": 1.0, "lab_door": 1.5},
+        "sliding": {"partner": 5.0},
+        "fixed": {"bias": 0.5},
+    }
+
+
 @dataclass(frozen=True)
 class TypesConfig:
-    """The type rule (:func:`~drawer_lib.articulation.joints.decide`): a handle within
-    ``edge_frac`` of a side edge makes a door hinged on the far side (a horizontal one only
-    within ``edge_frac`` / 2), near the bottom a flap hinged at the top, near the top a drawer
-    (or, when ``use_labels`` and the majority of label votes is in ``door_labels`` rather than
-    ``drawer_labels``, a flap hinged at the bottom), central a drawer."""
+    """The type decision. ``rule: score`` (default): a linear score per hypothesis over the
+    front's evidence (:mod:`drawer_lib.articulation.scoring`), ``weights`` {hypothesis:
+    {feature: weight}} fitted on the train split by scripts/fit_decisions.py. ``rule: handle``:
+    the earlier rule on the handle alone (:func:`~drawer_lib.articulation.joints.decide`): a
+    handle within ``edge_frac`` of a side edge makes a door hinged on the far side (a horizontal
+    one only within ``edge_frac`` / 2), near the bottom a flap hinged at the top, near the top a
+    drawer (or, when ``use_labels`` and the majority of label votes is in ``door_labels`` rather
+    than ``drawer_labels``, a flap hinged at the bottom), central a drawer; a sliding partner
+    makes a sliding door, no handle a fixed panel. ``edge_frac`` also bounds the stacked-pull
+    check of the handles. ``use_labels``: label votes are evidence (false: ignored)."""
 
+    rule: str = "score"
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
     drawer_labels: list[str] = field(default_factory=lambda: ["drawer"])
+    weights: dict[str, dict[str, float]] = field(default_factory=_default_weights)
 
     def __post_init__(self):
+        from drawer_lib.articulation.scoring import check_weights
+
+        if self.rule not in ("score", "handle"):
+            raise ConfigError(f"articulate.types.rule = {self.rule!r} must be score or handle")
         if not 0 < self.edge_frac < 0.5:
             raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
+        check_weights(self.weights)
 
 
 @dataclass(frozen=True)
@@ -124,7 +149,10 @@ class JointsConfig:
     max] behind (measured on the points within ``sliding_band`` of their shared edge), of the
     same height (within ``sliding_same_height`` of it, centres within ``sliding_aligned`` of
     it); each travels the partner's width minus the overlap and ``sliding_clearance``, at least
-    ``sliding_min_travel``."""
+    ``sliding_min_travel``. A sliding door without a partner travels ``sliding_single_travel``
+    x its width toward the side where the mesh lies deeper behind its plane (an open shelf or
+    a panel it slides over, probed over ``sliding_probe`` x its width beyond each side edge),
+    away from its handle when both sides look alike."""
 
     revolute_limit_deg: float = 90.0
     drawer_travel: float = 0.8
@@ -142,6 +170,8 @@ class JointsConfig:
     sliding_aligned: float = 0.1
     sliding_clearance: float = 0.02
     sliding_min_travel: float = 0.05
+    sliding_single_travel: float = 0.9
+    sliding_probe: float = 0.5
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:

@@ -11,10 +11,11 @@ from collections.abc import Callable
 import numpy as np
 import trimesh
 
-from drawer_lib.articulation.config import ArticulateConfig
-from drawer_lib.articulation.fronts import fit_front, refine_with_masks, sample_points, share_edges
+from drawer_lib.articulation.config import ArticulateConfig, TypesConfig
+from drawer_lib.articulation.fronts import abutting_edges, fit_front, refine_with_masks, sample_points, share_edges
 from drawer_lib.articulation.handles import front_handles
-from drawer_lib.articulation.joints import Decision, carcass_depth, decide, make_part, sliding_partners
+from drawer_lib.articulation.joints import Decision, carcass_depth, decide, make_part, slide_side, sliding_partners
+from drawer_lib.articulation.scoring import HYPOTHESES, Evidence, door_features, features, rail_extent, score
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front, Part
 from drawer_lib.perception.decompose import Segment
@@ -81,24 +82,70 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                                      max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views)
     seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
     partner = sliding_partners(fronts, handles, cfg.joints, seg_pts)
+    floor_z = float(np.percentile(np.asarray(mesh.vertices)[:, 2], 1.0)) if len(mesh.vertices) else 0.0
+    neighbours = front_neighbours(fronts, max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap),
+                                  cfg.handles.stacked_plane_tol)
     counts: dict[str, int] = {}
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
-        if k in partner:
+        carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
+        terms = {}
+        if cfg.types.rule == "score":
+            ev = Evidence(h, fr.size, float(fr.center[2]) - floor_z, neighbours[k][0], neighbours[k][1],
+                          neighbours[k][2], k in partner, rail_extent(fr, mesh_pts, pt_normal), carcass, s.labels,
+                          s.support)
+            dec, terms = decide_by_score(ev, cfg.types)
+        elif k in partner:
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
             dec = decide(h, s.labels, cfg.types)
         reason = dec.reason + "".join(f"; the pull it shared with segment {fits[hi][0].id} went there"
                                       for lo, hi in gave_up if lo == k)
         row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason,
-               "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size], **info}
+               "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size],
+               "front": fr.to_json(), **info, **terms}
         report.append(row)
         if dec.family == "fixed":
             continue
         pid = f"{dec.family}_{counts.get(dec.family, 0)}"
         counts[dec.family] = counts.get(dec.family, 0) + 1
         extra = {"family": dec.family, "segment": s.id}
-        carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints) if dec.family == "drawer" else None
         pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
-        parts.append(make_part(pid, dec, fr, cfg.joints, extra, carcass, pair))
+        side = slide_side(fr, mesh_pts, h, cfg.joints) if dec.family == "sliding" and pair is None else None
+        parts.append(make_part(pid, dec, fr, cfg.joints, extra, carcass if dec.family == "drawer" else None, pair,
+                               side))
         row["part"] = pid
     return parts, report
+
+
+def front_neighbours(fronts: list[Front], max_gap: float, plane_tol: float) -> list[tuple[int, bool, bool]]:
+    """Per front (coplanar fronts sharing its top or bottom edge, one shares its left edge, one
+    shares its right edge) (:func:`~drawer_lib.articulation.fronts.abutting_edges`)."""
+    out = []
+    for a, fa in enumerate(fronts):
+        stacked, left, right = 0, False, False
+        for b, fb in enumerate(fronts):
+            if a == b:
+                continue
+            for ax, side, _ in abutting_edges(fa, fb, max_gap, plane_tol):
+                if ax == 1:
+                    stacked += 1
+                elif side < 0:
+                    left = True
+                else:
+                    right = True
+        out.append((stacked, left, right))
+    return out
+
+
+def decide_by_score(ev: Evidence, cfg: TypesConfig) -> tuple[Decision, dict]:
+    """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
+    for ``decisions.json`` (features, door features per hinge side, scores)."""
+    common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels)
+    door = {side: door_features(ev, side) for side in ("left", "right")}
+    scores = score(common, door, cfg.weights)
+    best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
+    runner_up = max((v for k, v in scores.items() if k != best), default=float("-inf"))
+    fam, _, hinge = best.partition("_")
+    dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up:.2f})")
+    r4 = lambda d: {k: round(float(v), 4) for k, v in d.items()}  # noqa: E731
+    return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()}, "scores": r4(scores)}

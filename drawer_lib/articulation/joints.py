@@ -131,12 +131,35 @@ def sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: Joi
     return out
 
 
+def slide_side(front: Front, mesh_points: np.ndarray, handle: Handle | None, cfg: JointsConfig) -> float:
+    """The direction (+1: along u, -1: against it) a sliding door without a partner opens:
+    toward the side where the mesh, probed over ``sliding_probe`` x its width beyond each side
+    edge within its height, lies deeper behind its plane (an open shelf, a panel it slides over,
+    not a wall it would run into), away from its handle when both sides are within 2 cm."""
+    c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
+    rel = mesh_points - c
+    pu, pv, depth = rel @ u, rel @ front.v, -(rel @ n)
+    hw, hh = front.size[0] / 2, front.size[1] / 2
+    band = (np.abs(pv) < 0.8 * hh) & (depth > -0.01) & (depth < 1.5)
+    out = []
+    for sgn in (-1.0, 1.0):
+        sel = band & (sgn * pu > hw + 0.01) & (sgn * pu < hw + cfg.sliding_probe * 2 * hw)
+        out.append(float(np.median(depth[sel])) if sel.sum() >= 10 else 0.0)
+    if abs(out[1] - out[0]) > 0.02:
+        return 1.0 if out[1] > out[0] else -1.0
+    if handle is not None and abs(handle.a_u - 0.5) > 0.05:
+        return 1.0 if handle.a_u < 0.5 else -1.0
+    return 1.0
+
+
 def make_part(pid: str, dec: Decision, front: Front, cfg: JointsConfig, extra: dict,
-              carcass: float | None = None, partner: tuple[Front, float] | None = None) -> Part:
+              carcass: float | None = None, partner: tuple[Front, float] | None = None,
+              slide_dir: float | None = None) -> Part:
     """The part of a front with decision ``dec`` (not ``fixed``): a revolute part on its hinge,
     a drawer along the outward normal travelling ``drawer_travel`` x ``carcass`` (the carcass
-    depth, or ``default_depth``), or a sliding door toward ``partner`` = (the other panel, their
-    overlap in u)."""
+    depth, or ``default_depth``), a sliding door toward ``partner`` = (the other panel, their
+    overlap in u), or without a partner along ``slide_dir`` x u (:func:`slide_side`) by
+    ``sliding_single_travel`` x its width."""
     if dec.family in ("door", "flap"):
         lim = (0.0, float(np.deg2rad(cfg.revolute_limit_deg)))
         return Part(pid, "revolute", hinge_axis(front, dec.hinge), lim, front, extra=extra | {"hinge": dec.hinge})
@@ -150,4 +173,10 @@ def make_part(pid: str, dec: Decision, front: Front, cfg: JointsConfig, extra: d
         u = np.asarray(front.u) * (1.0 if du >= 0 else -1.0)
         travel = max(other.size[0] - ov - cfg.sliding_clearance, cfg.sliding_min_travel)
         return Part(pid, "prismatic", Axis(front.center, tuple(u.tolist())), (0.0, float(travel)), front, extra=extra)
-    raise ValueError(f"make_part: no part for family {dec.family!r}" + (" without a partner" if dec.family == "sliding" else ""))
+    if dec.family == "sliding" and slide_dir is not None:
+        u = np.asarray(front.u) * (1.0 if slide_dir >= 0 else -1.0)
+        travel = max(cfg.sliding_single_travel * front.size[0], cfg.sliding_min_travel)
+        return Part(pid, "prismatic", Axis(front.center, tuple(u.tolist())), (0.0, float(travel)), front,
+                    extra=extra | {"partner": None})
+    raise ValueError(f"make_part: no part for family {dec.family!r}" +
+                     (" without a partner or a direction" if dec.family == "sliding" else ""))

@@ -63,18 +63,20 @@ def sdf_grid(sdf_fn: SdfFn, lo: np.ndarray, hi: np.ndarray, cell: float, coarse_
 
 
 def frustum_mask(lo: np.ndarray, shape: tuple[int, int, int], cell: float, intr: Intrinsics, w2c: np.ndarray,
-                 near: float = 0.05, chunk: int = 1 << 20) -> np.ndarray:
+                 near: float = 0.05, chunk: int = 1 << 20, where: np.ndarray | None = None) -> np.ndarray:
     """Vertices inside the view frustum (in front of the camera, within the image) of at least one
-    of the cameras ``w2c`` [C, 4, 4]. Computed in float32 chunks of vertices (memory stays
+    of the cameras ``w2c`` [C, 4, 4]; with ``where`` (bool ``shape``) only those vertices are
+    tested (the others are False). Computed in float32 chunks of vertices (memory stays
     bounded for large grids)."""
     axes = [torch.tensor(lo[a] + cell * np.arange(shape[a]), dtype=torch.float32) for a in range(3)]
     T = torch.tensor(np.asarray(w2c), dtype=torch.float32)  # [C, 4, 4]
     seen = torch.zeros(shape, dtype=torch.bool)
     flat = seen.view(-1)
-    n = int(np.prod(shape))
+    todo = (torch.arange(int(np.prod(shape))) if where is None
+            else torch.from_numpy(np.flatnonzero(np.asarray(where, bool).reshape(-1))))
     YZ = shape[1] * shape[2]
-    for s0 in range(0, n, chunk):
-        k = torch.arange(s0, min(s0 + chunk, n))
+    for s0 in range(0, len(todo), chunk):
+        k = todo[s0 : s0 + chunk]
         p = torch.stack([axes[0][k // YZ], axes[1][(k // shape[2]) % shape[1]], axes[2][k % shape[2]]], -1)
         ok = torch.zeros(len(k), dtype=torch.bool)
         for Tc in T:
@@ -84,7 +86,7 @@ def frustum_mask(lo: np.ndarray, shape: tuple[int, int, int], cell: float, intr:
             u = intr.fx * pc[:, 0] / zs + intr.cx
             v = intr.fy * pc[:, 1] / zs + intr.cy
             ok |= (z > near) & (u >= 0) & (u <= intr.width) & (v >= 0) & (v <= intr.height)
-        flat[s0 : s0 + len(k)] = ok
+        flat[k] = ok
     return seen.numpy()
 
 
@@ -127,7 +129,10 @@ def grid_field_mesh(grid, intr: Intrinsics, w2c: np.ndarray, level: float = 0.0,
     put a false surface at the back of the truncation band). Raises ValueError when no cube is
     both observed and seen."""
     obs = grid.observed()
-    mask = cube_mask(obs) & frustum_mask(grid.lo, obs.shape, grid.cell, intr, w2c, near)
+    cubes = cube_mask(obs)
+    # both masks index a cube by its lowest corner: testing the frustum only where a cube is
+    # observed gives the same mask with far fewer projections
+    mask = cubes & frustum_mask(grid.lo, obs.shape, grid.cell, intr, w2c, near, where=cubes)
     if not mask.any():
         raise InputError("grid_field_mesh: no observed cube lies in a train camera's view")
     return marching_cubes_mesh(np.where(obs, grid.values, grid.unknown), grid.lo, grid.cell, level, mask)

@@ -96,12 +96,14 @@ def test_flap_with_handle_at_the_bottom_is_hinged_at_the_top():
     assert np.allclose(p.axis.direction, [-1, 0, 0], atol=1e-6)
 
 
-def test_top_handle_is_a_drawer_unless_the_labels_say_door():
-    (p,), _ = run("top")
+def test_handle_rule_top_handle_is_a_drawer_unless_the_labels_say_door():
+    """The earlier rule (``types.rule: handle``), kept for comparison."""
+    rule = ArticulateConfig(types=TypesConfig(rule="handle"))
+    (p,), _ = run("top", cfg=rule)
     assert p.extra["family"] == "drawer"
-    (p,), _ = run("top", labels={"door": 9, "drawer": 2})
+    (p,), _ = run("top", labels={"door": 9, "drawer": 2}, cfg=rule)
     assert p.extra["family"] == "flap" and p.extra["hinge"] == "bottom"
-    (p,), _ = run("top", labels={"door": 9}, cfg=ArticulateConfig(types=TypesConfig(use_labels=False)))
+    (p,), _ = run("top", labels={"door": 9}, cfg=ArticulateConfig(types=TypesConfig(rule="handle", use_labels=False)))
     assert p.extra["family"] == "drawer"  # labels are hints only, and can be switched off
 
 

@@ -95,6 +95,10 @@ def test_frustum_mask_marks_what_a_camera_sees():
     m = frustum_mask(lo, shape, cell, intr, w2c)
     k = lambda p: tuple(np.rint((np.array(p) - lo) / cell).astype(int))  # noqa: E731
     assert m[k([0, 0, 1])] and not m[k([0, 0, -0.5])] and not m[k([1, 0, 0.5])]
+    # testing only some vertices gives the full mask there and False elsewhere (chunked too)
+    where = np.random.default_rng(0).random(shape) < 0.3
+    for chunk in (1 << 20, 97):
+        np.testing.assert_array_equal(frustum_mask(lo, shape, cell, intr, w2c, where=where, chunk=chunk), m & where)
 
 
 def test_clean_drops_small_components_and_simplifies():

@@ -1,0 +1,175 @@
+"""The type decision as a score over hypotheses, from all the evidence a front has.
+
+Every front gets a feature vector (its handle's place and shape, its size and aspect, its
+height above the floor, its neighbours, a sliding partner, the carcass behind it, label votes
+and detection support; :func:`features`), and each hypothesis a linear score
+
+    score(H) = sum_f weights[H][f] * phi_f
+
+with ``door`` scored once per hinge side on features expressed relative to that side (the
+handle's closeness to the free and to the hinge edge, a neighbour at either edge), so left and
+right doors share one weight vector and mirror exactly. The front takes the hypothesis of
+highest score (a multinomial logistic model: the weights are fitted on the train split by
+``scripts/fit_decisions.py`` and live in ``conf/articulate/default.yaml``; ``decisions.json``
+records every feature and score). Nothing here encodes a size of our generator: sizes enter
+only as features whose weights are fitted.
+
+| feature | meaning (all 0 without a handle for the handle terms) |
+|---|---|
+| bias | 1 |
+| handle | a handle was found |
+| h_top, h_bottom | closeness of the handle to the top / bottom edge: max(0, 1 - d / ramp), d in units of the front's height |
+| h_side | closeness to the nearer side edge (same ramp, units of the width) |
+| h_center_u | 1 - 2 abs(a_u - 0.5): 1 when the handle is centred left-right |
+| h_vertical, h_horizontal, h_round | the handle's shape |
+| aspect | log(height / width), clipped to +-2 |
+| width, height | the front's sides (m) |
+| z_mid | the front's centre above the floor (m; the floor is a low percentile of the mesh's heights) |
+| stacked | coplanar fronts sharing its top or bottom edge (0, 0.5, 1 for 0, 1, 2+) |
+| beside | a coplanar front shares its left or right edge |
+| partner | a neighbouring front of the same height on another track (a sliding pair) |
+| rail | a track along the top or bottom edge: the u-extent, in units of the front's width (at most 2), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) lies there (:func:`rail_extent`) |
+| carcass | depth of the cabinet the mesh shows behind it (m, 0 when none) |
+| lab_drawer, lab_door | the fraction of the segment's label votes in drawer_labels / door_labels |
+| support | log(1 + views whose detections matched the segment) / log(50) |
+| h_free, h_hinge | (door only) the handle's closeness to the free / the hinge edge |
+| beside_free, beside_hinge | (door only) a coplanar front shares the free / the hinge edge |
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drawer_lib.articulation.handles import Handle
+from drawer_lib.errors import ConfigError
+
+HYPOTHESES = ("drawer", "door_left", "door_right", "flap_top", "flap_bottom", "sliding", "fixed")
+WEIGHT_SETS = ("drawer", "door", "flap_top", "flap_bottom", "sliding", "fixed")
+COMMON = ("bias", "handle", "h_top", "h_bottom", "h_side", "h_center_u", "h_vertical", "h_horizontal", "h_round",
+          "aspect", "width", "height", "z_mid", "stacked", "beside", "partner", "rail", "carcass", "lab_drawer",
+          "lab_door", "support")
+DOOR_ONLY = ("h_free", "h_hinge", "beside_free", "beside_hinge")
+RAMP = 0.35  # handle closeness falls from 1 at an edge to 0 at this fraction of the front away
+
+
+@dataclass
+class Evidence:
+    """What is known about one front besides its rectangle."""
+
+    handle: Handle | None
+    size: tuple[float, float]  # (width, height) m
+    z_mid: float  # centre above the floor (m)
+    stacked: int  # coplanar fronts sharing its top or bottom edge
+    beside_left: bool  # a coplanar front shares its left edge
+    beside_right: bool
+    partner: bool  # a sliding partner on another track
+    rail: float  # rail_extent
+    carcass: float | None  # cabinet depth behind it (m)
+    labels: dict  # label votes
+    support: int  # views whose detections matched the segment
+
+
+def _ramp(d: float) -> float:
+    return float(np.clip(1.0 - d / RAMP, 0.0, 1.0))
+
+
+def features(ev: Evidence, drawer_labels: list[str], door_labels: list[str], use_labels: bool) -> dict[str, float]:
+    """The common features (:data:`COMMON`) of a front."""
+    w, h = ev.size
+    f = dict.fromkeys(COMMON, 0.0)
+    f["bias"] = 1.0
+    hd = ev.handle
+    if hd is not None:
+        f["handle"] = 1.0
+        f["h_top"], f["h_bottom"] = _ramp(1.0 - hd.a_v), _ramp(hd.a_v)
+        f["h_side"] = max(_ramp(hd.a_u), _ramp(1.0 - hd.a_u))
+        f["h_center_u"] = 1.0 - 2.0 * abs(hd.a_u - 0.5)
+        f[f"h_{hd.orientation}"] = 1.0
+    f["aspect"] = float(np.clip(np.log(max(h, 1e-3) / max(w, 1e-3)), -2.0, 2.0))
+    f["width"], f["height"] = float(w), float(h)
+    f["z_mid"] = float(np.clip(ev.z_mid, 0.0, 3.0))
+    f["stacked"] = min(ev.stacked, 2) / 2.0
+    f["beside"] = float(ev.beside_left or ev.beside_right)
+    f["partner"] = float(ev.partner)
+    f["rail"] = float(np.clip(ev.rail, 0.0, 2.0))
+    f["carcass"] = float(ev.carcass or 0.0)
+    votes = sum(ev.labels.values()) if ev.labels else 0
+    if use_labels and votes > 0:
+        f["lab_drawer"] = sum(v for k, v in ev.labels.items() if k in drawer_labels) / votes
+        f["lab_door"] = sum(v for k, v in ev.labels.items() if k in door_labels) / votes
+    f["support"] = float(np.clip(np.log1p(ev.support) / np.log(50.0), 0.0, 1.5))
+    return f
+
+
+def door_features(ev: Evidence, hinge: str) -> dict[str, float]:
+    """The features of the door hypothesis hinged at ``hinge`` (left | right)."""
+    hd = ev.handle
+    f = dict.fromkeys(DOOR_ONLY, 0.0)
+    if hd is not None:
+        to_left, to_right = hd.a_u, 1.0 - hd.a_u
+        f["h_free"] = _ramp(to_right if hinge == "left" else to_left)
+        f["h_hinge"] = _ramp(to_left if hinge == "left" else to_right)
+    f["beside_hinge"] = float(ev.beside_left if hinge == "left" else ev.beside_right)
+    f["beside_free"] = float(ev.beside_right if hinge == "left" else ev.beside_left)
+    return f
+
+
+def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> float:
+    """How far a track runs along the front's top or bottom edge: the 2nd-98th percentile
+    u-extent of the mesh ``points`` [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7
+    with the front's normal), lie within ``band`` beyond that edge and 0.4 to 4 cm in front of
+    the front's plane (proud of it: coplanar neighbours are not a track), divided by the front's
+    width; the larger of the two edges.
+    An edge with a horizontal surface reaching more than 10 cm behind the plane there (a
+    counter top, a shelf) has no track. 0 when fewer than 20 points qualify."""
+    c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
+    v = front.v
+    rel = points - c
+    pu, pv, pn = rel @ u, rel @ v, rel @ n
+    hw, hh = front.size[0] / 2, front.size[1] / 2
+    near_u = np.abs(pu) < 2.0 * hw
+    facing = normals @ n > 0.7
+    flat = np.abs(normals[:, 2]) > 0.7
+    best = 0.0
+    for sgn in (1.0, -1.0):
+        beyond = sgn * pv - hh
+        in_band = near_u & (beyond > 0.0) & (beyond < band)
+        if (in_band & flat & (pn < -0.1)).sum() >= 20:  # a counter top or a shelf, not a track
+            continue
+        sel = in_band & facing & (pn > 0.004) & (pn < 0.04)
+        if sel.sum() >= 20:
+            ext = np.percentile(pu[sel], 98) - np.percentile(pu[sel], 2)
+            best = max(best, float(ext / max(2 * hw, 1e-6)))
+    return best
+
+
+def check_weights(weights: dict[str, dict[str, float]]) -> None:
+    """Every weight set named, every feature known, every weight finite."""
+    for k, ws in weights.items():
+        if k not in WEIGHT_SETS:
+            raise ConfigError(f"articulate.types.weights: unknown hypothesis {k!r} (known: {WEIGHT_SETS})")
+        known = COMMON + (DOOR_ONLY if k == "door" else ())
+        for f, v in ws.items():
+            if f not in known:
+                raise ConfigError(f"articulate.types.weights.{k}: unknown feature {f!r} (known: {known})")
+            if not np.isfinite(v):
+                raise ConfigError(f"articulate.types.weights.{k}.{f} = {v} is not finite")
+    missing = [k for k in WEIGHT_SETS if k not in weights]
+    if missing:
+        raise ConfigError(f"articulate.types.weights: missing hypotheses {missing}")
+
+
+def score(common: dict[str, float], door: dict[str, dict[str, float]], weights: dict[str, dict[str, float]]
+          ) -> dict[str, float]:
+    """The score of every hypothesis (:data:`HYPOTHESES`). ``door``: {left|right: door features}."""
+
+    def dot(ws: dict[str, float], *fs: dict[str, float]) -> float:
+        return float(sum(ws.get(k, 0.0) * v for f in fs for k, v in f.items()))
+
+    out = {}
+    for hyp in HYPOTHESES:
+        if hyp.startswith("door_"):
+            out[hyp] = dot(weights["door"], common, door[hyp[5:]])
+        else:
+            out[hyp] = dot(weights[hyp], common)
+    return out
