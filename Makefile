@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation ste-regimes clean
+.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions ste-regimes clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -49,8 +49,16 @@ bench-splat: setup ## CPU rasterizer fwd+bwd vs gsplat's pure-PyTorch path (inst
 	$(BIN)/pip install -q gsplat==1.5.3
 	$(BIN)/python scripts/bench_splat.py
 
-bench-articulation: setup ## decompose + articulate over 20 procedural kitchens: noisy, no and generic detections
-	$(BIN)/python scripts/bench_articulation.py
+BENCH_OUT ?= /tmp/bench_articulation
+bench-articulation: setup ## perception on the train and the test split (20 kitchens each, generic labels; ~1 h)
+	$(BIN)/python scripts/bench_articulation.py --split train --out $(BENCH_OUT)
+	$(BIN)/python scripts/bench_articulation.py --split test --out $(BENCH_OUT)
+
+fit-decisions: setup ## refit the type decision's weights on the train split (after bench-articulation), then re-score both splits
+	$(BIN)/python scripts/fit_decisions.py --bench $(BENCH_OUT)/train --write
+	$(BIN)/python scripts/compose_params.py
+	$(BIN)/python scripts/bench_articulation.py --split train --out $(BENCH_OUT) --reuse --articulate-only
+	$(BIN)/python scripts/bench_articulation.py --split test --out $(BENCH_OUT) --reuse --articulate-only
 
 ste-regimes: setup ## hard clip vs STE vs free 3DGS on kitchen_small: position lr sweep and five harder-bound regimes (needs `make run`; ~2 h)
 	$(BIN)/python scripts/ste_regimes.py

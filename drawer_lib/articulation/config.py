@@ -118,9 +118,13 @@ class TypesConfig:
     drawer (or, when ``use_labels`` and the majority of label votes is in ``door_labels`` rather
     than ``drawer_labels``, a flap hinged at the bottom), central a drawer; a sliding partner
     makes a sliding door, no handle a fixed panel. ``edge_frac`` also bounds the stacked-pull
-    check of the handles. ``use_labels``: label votes are evidence (false: ignored)."""
+    check of the handles. ``use_labels``: label votes are evidence (false: ignored). Either
+    rule: a front without a handle that detections matched in fewer than ``min_support``
+    views is a fixed panel (a front seen in many views, in a carcass, is rarely fixed even when
+    its handle is too small to find); a front with a handle or enough support is typed."""
 
     rule: str = "score"
+    min_support: int = 5
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
@@ -134,6 +138,8 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.rule = {self.rule!r} must be score or handle")
         if not 0 < self.edge_frac < 0.5:
             raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
+        if self.min_support < 0:
+            raise ConfigError(f"articulate.types.min_support = {self.min_support} must be >= 0")
         check_weights(self.weights)
 
 

@@ -89,7 +89,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
         terms = {}
-        if cfg.types.rule == "score":
+        if h is None and s.support < cfg.types.min_support:
+            dec = Decision("fixed", reason=f"no handle, matched in {s.support} < {cfg.types.min_support} views")
+        elif cfg.types.rule == "score":
             ev = Evidence(h, fr.size, float(fr.center[2]) - floor_z, neighbours[k][0], neighbours[k][1],
                           neighbours[k][2], k in partner, rail_extent(fr, mesh_pts, pt_normal), carcass, s.labels,
                           s.support)

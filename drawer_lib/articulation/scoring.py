@@ -28,7 +28,7 @@ only as features whose weights are fitted.
 | stacked | coplanar fronts sharing its top or bottom edge (0, 0.5, 1 for 0, 1, 2+) |
 | beside | a coplanar front shares its left or right edge |
 | partner | a neighbouring front of the same height on another track (a sliding pair) |
-| rail | a track along the top or bottom edge: the u-extent, in units of the front's width (at most 2), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) lies there (:func:`rail_extent`) |
+| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) lies there (:func:`rail_extent`) |
 | carcass | depth of the cabinet the mesh shows behind it (m, 0 when none) |
 | lab_drawer, lab_door | the fraction of the segment's label votes in drawer_labels / door_labels |
 | support | log(1 + views whose detections matched the segment) / log(50) |
@@ -115,11 +115,12 @@ def door_features(ev: Evidence, hinge: str) -> dict[str, float]:
 
 
 def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> float:
-    """How far a track runs along the front's top or bottom edge: the 2nd-98th percentile
-    u-extent of the mesh ``points`` [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7
-    with the front's normal), lie within ``band`` beyond that edge and 0.4 to 4 cm in front of
-    the front's plane (proud of it: coplanar neighbours are not a track), divided by the front's
-    width; the larger of the two edges.
+    """How far a track runs along the front's top or bottom edge: the unbroken run (2 cm bins
+    along u, through the front's middle, at least 90 % of its width) of the mesh ``points``
+    [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7 with the front's normal), lie
+    within ``band`` beyond that edge and 0.4 to 4 cm in front of the front's plane (proud of it:
+    coplanar neighbours are not a track), divided by the front's width; the larger of the two
+    edges.
     An edge with a horizontal surface reaching more than 10 cm behind the plane there (a
     counter top, a shelf) has no track. 0 when fewer than 20 points qualify."""
     c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
@@ -137,9 +138,22 @@ def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.
         if (in_band & flat & (pn < -0.1)).sum() >= 20:  # a counter top or a shelf, not a track
             continue
         sel = in_band & facing & (pn > 0.004) & (pn < 0.04)
-        if sel.sum() >= 20:
-            ext = np.percentile(pu[sel], 98) - np.percentile(pu[sel], 2)
-            best = max(best, float(ext / max(2 * hw, 1e-6)))
+        if sel.sum() < 20:
+            continue
+        # the unbroken run of 2 cm bins along u holding such points, through the front's middle:
+        # a track spans the front, handles and neighbours' pulls leave gaps
+        bins = np.floor((pu[sel] + 2.0 * hw) / 0.02).astype(np.int64)
+        occ = np.zeros(int(np.ceil(4.0 * hw / 0.02)) + 1, bool)
+        occ[np.clip(bins, 0, len(occ) - 1)] = True
+        occ[1:-1] |= occ[:-2] & occ[2:]  # a single empty bin between two full ones is sampling, not a gap
+        mid = int((2.0 * hw) / 0.02)
+        if not occ[mid]:
+            continue
+        lo = mid - int(np.argmin(occ[mid::-1])) + 1 if not occ[: mid + 1].all() else 0
+        hi = mid + int(np.argmin(occ[mid:])) if not occ[mid:].all() else len(occ)
+        run = (hi - lo) * 0.02
+        if run >= 0.9 * 2 * hw:
+            best = max(best, float(run / (2 * hw)))
     return best
 
 

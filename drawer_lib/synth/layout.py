@@ -525,9 +525,9 @@ def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
     elif kind == "sliding_single":
         # one panel on a rail in front of the cabinet, covering one half; the other half is an
         # open shelf it slides over (no partner front to see)
-        rail_h = 0.03
+        rail_h = 0.04  # a top-hung track: an aluminium profile 4 cm tall, 1.5 cm proud of the panel
         ys = y - tf - 0.004
-        b.add_static(box_between([x0, ys - 0.012, z1 - rail_h], [x1, y, z1]), "handle")  # the rail
+        b.add_static(box_between([x0, ys - 0.015, z1 - rail_h], [x1, y, z1]), "handle")  # the rail
         xm = (x0 + x1) / 2
         ov = 0.02
         left = b.rng2.random() < 0.5

@@ -11,7 +11,8 @@ counts). Kitchen ``k`` of a split is a fixed function of ``(split, k)``.
 | tall units | 2.05 m, 0.60 wide | 2.10 m, 0.70 or 0.75 wide |
 | handle styles (one per kitchen) | bar, knob, edge, recessed | bar, small_knob, edge, recessed |
 | fronts without a handle | 8 % | 15 % |
-| appliances | oven, dishwasher (weights 0.6), a microwave in half the kitchens | oven, dishwasher (1.0), a microwave in every kitchen |
+| appliances | oven, dishwasher (weights 1.2), a microwave in half the kitchens | oven, dishwasher (1.0), a microwave in every kitchen |
+| sliding doors (two panels / one on a rail) | weights 1.0 / 1.2; even k require one on a rail, odd k a pair and a flap | 0.8 / 1.0 |
 | kitchen yaw | +-25 deg | +-45 deg |
 | frames | 200x150 x 48, every 4th kitchen (k = 3, 7, ..) 320x240 x 60 | the same, at k = 1, 5, .. |
 
@@ -40,14 +41,17 @@ def split_synth(split: str, k: int) -> dict:
             "base_modules": int(g.integers(3, 6)), "wall_modules": int(g.integers(2, 5)),
             "tall_units": int(g.integers(0, 2)), "fixed_fronts": int(g.integers(0, 2)),
             "base_types": {"door": 2.0, "double_door": 1.0, "drawers": 2.0, "drawer_door": 1.5, "flap_down": 0.3,
-                           "oven": 0.6, "dishwasher": 0.6},
+                           "oven": 1.2, "dishwasher": 1.2},
             "wall_types": {"door": 2.0, "double_door": 1.0, "flap_up": 1.5, "flap_down": 0.3, "sliding": 1.0,
-                           "sliding_single": 0.6},
+                           "sliding_single": 1.2},
             "tall_types": {"split": 1.0, "fridge1": 1.0, "fridge2": 1.0, "pantry": 1.0},
             "handle_styles": ["bar", "knob", "edge", "recessed"],
             "no_handle_p": 0.08,
             "microwaves": int(g.integers(0, 2)),
             "yaw_deg": [-25.0, 25.0],
+            # every other kitchen requires a sliding door without a partner instead of a top-hinged
+            # flap and a sliding pair (else it is rare: the wall run drops modules until it fits)
+            "require_types": ["drawers", "door"] + (["sliding_single"] if k % 2 == 0 else ["flap_up", "sliding"]),
         }
         camera = _CAM_LARGE if k % 4 == 3 else _CAM_SMALL
         return {"seed": 100 + k, "layout": layout, "camera": dict(camera)}
