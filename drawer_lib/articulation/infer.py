@@ -15,7 +15,8 @@ from drawer_lib.articulation.config import ArticulateConfig, TypesConfig
 from drawer_lib.articulation.fronts import abutting_edges, fit_front, refine_with_masks, sample_points, share_edges
 from drawer_lib.articulation.handles import front_handles
 from drawer_lib.articulation.joints import Decision, carcass_depth, decide, make_part, slide_side, sliding_partners
-from drawer_lib.articulation.scoring import HYPOTHESES, Evidence, door_features, features, rail_extent, score
+from drawer_lib.articulation.scoring import (HYPOTHESES, Evidence, door_features, features, rail_extent, rail_run,
+                                             score)
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front, Part
 from drawer_lib.perception.decompose import Segment
@@ -112,7 +113,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         counts[dec.family] = counts.get(dec.family, 0) + 1
         extra = {"family": dec.family, "segment": s.id}
         pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
-        side = slide_side(fr, mesh_pts, h, cfg.joints) if dec.family == "sliding" and pair is None else None
+        side = (slide_side(fr, mesh_pts, h, cfg.joints, rail_run(fr, mesh_pts, pt_normal))
+                if dec.family == "sliding" and pair is None else None)
         parts.append(make_part(pid, dec, fr, cfg.joints, extra, carcass if dec.family == "drawer" else None, pair,
                                side))
         row["part"] = pid

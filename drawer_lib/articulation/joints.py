@@ -131,11 +131,19 @@ def sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: Joi
     return out
 
 
-def slide_side(front: Front, mesh_points: np.ndarray, handle: Handle | None, cfg: JointsConfig) -> float:
+def slide_side(front: Front, mesh_points: np.ndarray, handle: Handle | None, cfg: JointsConfig,
+               rail: tuple[float, float] | None = None) -> float:
     """The direction (+1: along u, -1: against it) a sliding door without a partner opens:
-    toward the side where the mesh, probed over ``sliding_probe`` x its width beyond each side
-    edge within its height, lies deeper behind its plane (an open shelf, a panel it slides over,
-    not a wall it would run into), away from its handle when both sides are within 2 cm."""
+    along its ``rail`` (lo, hi along u from its centre, m) where the rail runs on past it by
+    more than a fifth of its width; else toward the side where the mesh, probed over
+    ``sliding_probe`` x its width beyond each side edge within its height, lies deeper behind
+    its plane (an open shelf, a panel it slides over, not a wall it would run into); away from
+    its handle when both sides are within 2 cm."""
+    hw0 = front.size[0] / 2
+    if rail is not None:
+        past_lo, past_hi = -hw0 - rail[0], rail[1] - hw0
+        if max(past_lo, past_hi) > 0.2 * front.size[0] and abs(past_hi - past_lo) > 0.1 * front.size[0]:
+            return 1.0 if past_hi > past_lo else -1.0
     c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
     rel = mesh_points - c
     pu, pv, depth = rel @ u, rel @ front.v, -(rel @ n)

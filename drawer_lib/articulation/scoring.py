@@ -20,6 +20,7 @@ only as features whose weights are fitted.
 | handle | a handle was found |
 | h_top, h_bottom | closeness of the handle to the top / bottom edge: max(0, 1 - d / ramp), d in units of the front's height |
 | h_side | closeness to the nearer side edge (same ramp, units of the width) |
+| h_corner | min(h_side, max(h_top, h_bottom)): the handle sits by a corner (a door's pull at its free side, high or low) |
 | h_center_u | 1 - 2 abs(a_u - 0.5): 1 when the handle is centred left-right |
 | h_vertical, h_horizontal, h_round | the handle's shape |
 | aspect | log(height / width), clipped to +-2 |
@@ -28,7 +29,7 @@ only as features whose weights are fitted.
 | stacked | coplanar fronts sharing its top or bottom edge (0, 0.5, 1 for 0, 1, 2+) |
 | beside | a coplanar front shares its left or right edge |
 | partner | a neighbouring front of the same height on another track (a sliding pair) |
-| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) lies there (:func:`rail_extent`) |
+| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) spans half of it there (:func:`rail_extent`) |
 | carcass | depth of the cabinet the mesh shows behind it (m, 0 when none) |
 | lab_drawer, lab_door | the fraction of the segment's label votes in drawer_labels / door_labels |
 | support | log(1 + views whose detections matched the segment) / log(50) |
@@ -45,7 +46,8 @@ from drawer_lib.errors import ConfigError
 
 HYPOTHESES = ("drawer", "door_left", "door_right", "flap_top", "flap_bottom", "sliding", "fixed")
 WEIGHT_SETS = ("drawer", "door", "flap_top", "flap_bottom", "sliding", "fixed")
-COMMON = ("bias", "handle", "h_top", "h_bottom", "h_side", "h_center_u", "h_vertical", "h_horizontal", "h_round",
+COMMON = ("bias", "handle", "h_top", "h_bottom", "h_side", "h_corner", "h_center_u", "h_vertical", "h_horizontal",
+          "h_round",
           "aspect", "width", "height", "z_mid", "stacked", "beside", "partner", "rail", "carcass", "lab_drawer",
           "lab_door", "support")
 DOOR_ONLY = ("h_free", "h_hinge", "beside_free", "beside_hinge")
@@ -83,6 +85,7 @@ def features(ev: Evidence, drawer_labels: list[str], door_labels: list[str], use
         f["handle"] = 1.0
         f["h_top"], f["h_bottom"] = _ramp(1.0 - hd.a_v), _ramp(hd.a_v)
         f["h_side"] = max(_ramp(hd.a_u), _ramp(1.0 - hd.a_u))
+        f["h_corner"] = min(f["h_side"], max(f["h_top"], f["h_bottom"]))
         f["h_center_u"] = 1.0 - 2.0 * abs(hd.a_u - 0.5)
         f[f"h_{hd.orientation}"] = 1.0
     f["aspect"] = float(np.clip(np.log(max(h, 1e-3) / max(w, 1e-3)), -2.0, 2.0))
@@ -115,14 +118,22 @@ def door_features(ev: Evidence, hinge: str) -> dict[str, float]:
 
 
 def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> float:
+    """The track's length along the front in units of its width (0: none; :func:`rail_run`)."""
+    run = rail_run(front, points, normals, band)
+    return 0.0 if run is None else float((run[1] - run[0]) / max(front.size[0], 1e-6))
+
+
+def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> tuple[float, float] | None:
     """How far a track runs along the front's top or bottom edge: the unbroken run (2 cm bins
     along u, through the front's middle, at least 90 % of its width) of the mesh ``points``
     [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7 with the front's normal), lie
     within ``band`` beyond that edge and 0.4 to 4 cm in front of the front's plane (proud of it:
     coplanar neighbours are not a track), divided by the front's width; the larger of the two
     edges.
-    An edge with a horizontal surface reaching more than 10 cm behind the plane there (a
-    counter top, a shelf) has no track. 0 when fewer than 20 points qualify."""
+    An edge with a horizontal surface reaching more than 10 cm behind the plane there across
+    half the front's width or more (a counter top, a shelf) has no track. Returns the longer edge's run as (lo, hi) along u from
+    the front's centre (m), or None when no edge has one (fewer than 20 points qualify, or the
+    run is broken within the front's width)."""
     c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
     v = front.v
     rel = points - c
@@ -131,11 +142,12 @@ def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.
     near_u = np.abs(pu) < 2.0 * hw
     facing = normals @ n > 0.7
     flat = np.abs(normals[:, 2]) > 0.7
-    best = 0.0
+    best: tuple[float, float] | None = None
     for sgn in (1.0, -1.0):
         beyond = sgn * pv - hh
         in_band = near_u & (beyond > 0.0) & (beyond < band)
-        if (in_band & flat & (pn < -0.1)).sum() >= 20:  # a counter top or a shelf, not a track
+        deep = in_band & flat & (pn < -0.1)
+        if deep.sum() >= 20 and np.ptp(pu[deep]) > hw:  # a counter top or a shelf across it, not a track
             continue
         sel = in_band & facing & (pn > 0.004) & (pn < 0.04)
         if sel.sum() < 20:
@@ -151,9 +163,9 @@ def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.
             continue
         lo = mid - int(np.argmin(occ[mid::-1])) + 1 if not occ[: mid + 1].all() else 0
         hi = mid + int(np.argmin(occ[mid:])) if not occ[mid:].all() else len(occ)
-        run = (hi - lo) * 0.02
-        if run >= 0.9 * 2 * hw:
-            best = max(best, float(run / (2 * hw)))
+        run = (lo * 0.02 - 2.0 * hw, hi * 0.02 - 2.0 * hw)
+        if run[1] - run[0] >= 0.9 * 2 * hw and (best is None or run[1] - run[0] > best[1] - best[0]):
+            best = run
     return best
 
 
