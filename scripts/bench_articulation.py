@@ -10,7 +10,8 @@ with every detection mode in ``--modes``:
 - ``noisy``: the same noise with typed labels (drawer / door / ..., with confusions);
 - ``off``: no detections (decompose falls back to geometry);
 
-it renders the capture, fuses the sensor depth (TSDF, 2 cm: the fast geometry of the pipeline),
+it renders the capture, fuses the sensor depth (TSDF, 2 cm: the fast geometry of the pipeline;
+``--sdf neural`` trains the pipeline's neural SDF instead, ``--depth exact`` renders exact depth),
 meshes it, runs decompose + articulate with the default configs and scores the parts against the
 GT (DESIGN §6). Prints per-run rows and, per mode, precision / recall / EA-score (mean and worst
 scene) and pooled over all parts; writes ``<out>/<split>/results.json`` and ``summary.md``.
@@ -18,6 +19,8 @@ scene) and pooled over all parts; writes ``<out>/<split>/results.json`` and ``su
     python scripts/bench_articulation.py --split train [--n 20] [--modes generic] [--out /tmp/bench_articulation]
     python scripts/bench_articulation.py --split test --reuse   # after a perception change: same captures and meshes
     python scripts/bench_articulation.py --split train --reuse --kitchens 1,10   # a subset
+    python scripts/bench_articulation.py --split test --kitchens 1,5,9,13,17 --sdf neural --depth exact \
+        --out /tmp/bench_neural      # the geometry of the large kitchens with the default neural SDF
     python scripts/bench_articulation.py --split train --reuse --set articulate.types.use_labels=false
                                      # a config variant: results_<overrides>.json / summary_<overrides>.md
 """
@@ -66,8 +69,9 @@ def compose(overrides: list[str]):
 
 
 def one(split: str, k: int, mode: str, out: Path, reuse: bool = False, extra: tuple[str, ...] = (),
-        build_only: bool = False, articulate_only: bool = False) -> dict:
-    cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", "sdf=tsdf", *extra])
+        build_only: bool = False, articulate_only: bool = False, sdf: str = "tsdf", depth: str = "sensor") -> dict:
+    cfg = compose(["scene=kitchen_small", f"capture/detections={MODE_FILE[mode]}", f"capture/depth={depth}",
+                   f"sdf={sdf}", *extra])
     scene_d = OmegaConf.to_container(cfg.scene, resolve=True)
     for key, val in split_synth(split, k).items():  # the split's values replace kitchen_small's
         if isinstance(val, dict):
@@ -102,7 +106,7 @@ def one(split: str, k: int, mode: str, out: Path, reuse: bool = False, extra: tu
                                                     r)),
               ("articulate", lambda r: run_articulate(to_typed(ArticulateConfig, cfg.articulate, "articulate"), cap,
                                                       sp.decompose, r)))
-    geo = {}
+    geo, sdf_m = {}, {}
     for stage, fn in stages[4 - len(redo):] if kept else stages:
         if build_only and stage == "decompose":
             break
@@ -111,11 +115,13 @@ def one(split: str, k: int, mode: str, out: Path, reuse: bool = False, extra: tu
         o.mkdir()
         m = fn(StageRun(stage, o, o, 0))
         times[f"{stage}_s"] = time.perf_counter() - t
+        if stage == "sdf":
+            sdf_m = {f"sdf_{k}": m[k] for k in ("train_s", "steps") if k in m}
         if stage == "mesh":
-            geo = {k: m[k] for k in ("chamfer_l1", "fscore_2cm") if k in m}
+            geo = {k: m[k] for k in ("chamfer_l1", "fscore_1cm", "fscore_2cm") if k in m} | sdf_m
             (d / "geometry.json").write_text(json.dumps(geo))
     if build_only:
-        return {}
+        return {"kitchen": k, "mode": mode, **{t: round(v, 2) for t, v in times.items()}, **geo}
     if kept and (d / "geometry.json").is_file():
         geo = json.loads((d / "geometry.json").read_text())
     res, details = articulation_metrics(read_parts(sp.parts), read_parts(cap_dir / capture_name("gt_parts")),
@@ -127,10 +133,24 @@ def one(split: str, k: int, mode: str, out: Path, reuse: bool = False, extra: tu
     return row
 
 
+def geometry_summary(rows: list[dict], sdf: str) -> str:
+    """Chamfer / F-scores / training time of the meshes, mean and worst kitchen."""
+    rs = [r for r in rows if "chamfer_l1" in r]
+    if not rs:
+        return ""
+    ch, f1, f2 = (np.array([r[k] for r in rs]) for k in ("chamfer_l1", "fscore_1cm", "fscore_2cm"))
+    t = np.array([r.get("sdf_train_s", r.get("sdf_s", np.nan)) for r in rs])
+    return ("| geometry | kitchens | Chamfer-L1 mean / worst | F@1cm mean / worst | F@2cm mean / worst | "
+            "training s mean / max |\n|---|---|---|---|---|---|\n"
+            f"| {sdf} | {len(rs)} ({', '.join(str(r['kitchen']) for r in rs)}) | {1000 * ch.mean():.2f} / "
+            f"{1000 * ch.max():.2f} mm | {f1.mean():.3f} / {f1.min():.3f} | {f2.mean():.3f} / {f2.min():.3f} | "
+            f"{np.nanmean(t):.0f} / {np.nanmax(t):.0f} |\n")
+
+
 def summary(rows: list[dict]) -> str:
     lines = ["| detections | kitchens | precision mean / worst | recall mean / worst | EA mean / worst scene | "
              "pooled P / R (parts) | EA pooled (revolute parts) | s per kitchen (perception) | "
-             "TSDF mesh: Chamfer mean / worst, F@2cm mean / worst |",
+             "mesh: Chamfer mean / worst, F@2cm mean / worst |",
              "|---|---|---|---|---|---|---|---|---|"]
     for mode in dict.fromkeys(r["mode"] for r in rows):
         rs = [r for r in rows if r["mode"] == mode]
@@ -165,6 +185,8 @@ def main() -> None:
     ap.add_argument("--build-only", action="store_true", help="captures and meshes only (no perception, no rows)")
     ap.add_argument("--articulate-only", action="store_true",
                     help="with --reuse: rerun articulate only, on the decompose outputs already there")
+    ap.add_argument("--sdf", choices=("tsdf", "neural"), default="tsdf", help="the geometry (conf/sdf)")
+    ap.add_argument("--depth", choices=("sensor", "exact"), default="sensor", help="the capture's depth (conf/capture/depth)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a Hydra override of the perception configs (repeatable); with --reuse on the same captures")
     a = ap.parse_args()
@@ -181,6 +203,8 @@ def main() -> None:
     if a.reuse:  # recompute these rows
         rows = [r for r in rows if (r["kitchen"], r["mode"]) not in set(todo)]
     done = {(r["kitchen"], r["mode"]) for r in rows}
+    geo_path = a.out / "geometry.json"  # build-only rows: the geometry alone
+    geo_rows = json.loads(geo_path.read_text()) if geo_path.exists() else []
     for k, mode in todo:
         if (k, mode) in done:
             continue
@@ -188,20 +212,23 @@ def main() -> None:
             sys.exit(f"--set needs the captures and meshes of a plain run under {a.out}: k{k:02d}_{mode} is missing")
         if a.build_only:
             if not (a.out / f"k{k:02d}_{mode}" / "mesh" / "mesh.ply").is_file():
-                one(a.split, k, mode, a.out, build_only=True)
-                print(f"kitchen {k:2d} {mode}: built", flush=True)
+                r = one(a.split, k, mode, a.out, build_only=True, sdf=a.sdf, depth=a.depth)
+                geo_rows = [g for g in geo_rows if (g["kitchen"], g["mode"]) != (k, mode)] + [r]
+                geo_path.write_text(json.dumps(geo_rows, indent=1))
+                print(f"kitchen {k:2d} {mode}: built; {json.dumps(r)}", flush=True)
             continue
-        r = one(a.split, k, mode, a.out, a.reuse or bool(a.set), tuple(a.set), articulate_only=a.articulate_only)
+        r = one(a.split, k, mode, a.out, a.reuse or bool(a.set), tuple(a.set), articulate_only=a.articulate_only,
+                sdf=a.sdf, depth=a.depth)
         rows.append(r)
         res_path.write_text(json.dumps(rows, indent=1))
         print(f"kitchen {k:2d} {mode:8s} P {r.get('precision', float('nan')):.3f} R {r['recall']:.3f} "
               f"EA {r.get('ea_score', float('nan')):.4f} ({r['n_correct']}/{r['n_pred'] - r['n_ignored']} pred, "
               f"{r['n_gt']} GT) perception {r['decompose_s'] + r['articulate_s']:.1f} s", flush=True)
-    if a.build_only:
-        return
     rows.sort(key=lambda r: (list(MODE_FILE).index(r["mode"]), r["kitchen"]))
-    md = summary(rows)
-    (a.out / f"summary{tag}.md").write_text(md)
+    md = geometry_summary(geo_rows if a.build_only else rows, f"{a.sdf}, {a.depth} depth")
+    if not a.build_only:
+        md = summary(rows) + "\n" + md
+    (a.out / f"summary{tag}{'_geometry' if a.build_only else ''}.md").write_text(md)
     print(md)
 
 

@@ -35,10 +35,19 @@ class EncodingConfig:
 
 @dataclass(frozen=True)
 class NetworkConfig:
+    """``init``: the geometric initialisation, an inside-out shape of radius the typical viewing
+    depth around the train cameras: ``sphere`` (around their mean centre) or ``capsule``
+    (around the segment their centres span along their principal axis, so every camera of a
+    long path along a kitchen run starts in free space)."""
+
     hidden: int = 64
     geo_features: int = 15
     color_hidden: int = 64
     view_dependent: bool = True
+    init: str = "capsule"
+
+    def __post_init__(self):
+        _check(self.init in ("sphere", "capsule"), f"network.init = {self.init!r} must be sphere or capsule")
 
 
 @dataclass(frozen=True)
@@ -47,7 +56,14 @@ class SamplingConfig:
     the scale-and-shift invariant depth loss needs). Samples: a cached coarse SDF grid (cell
     ``cache_cell``, refreshed every ``cache_every`` steps) finds each ray's first surface; ``fine``
     samples are placed around it within +- ``band`` (at least 4 beta) plus ``uniform`` stratified
-    samples over the whole ray, which keep unseen surfaces discoverable."""
+    samples over the whole ray, which keep unseen surfaces discoverable.
+
+    Depth points (metric depth only, loss ``depth_points``): each step also draws
+    ``depth_points`` pixels with a valid depth from all train frames and queries the SDF, with
+    no colour and no volume rendering, at each back-projected depth point (s = 0), at
+    ``depth_band`` samples within [-band, +``depth_behind``] metres of it along the ray (a
+    truncated projective SDF) and at ``depth_free`` samples in the free space in front of it
+    (0 <= s <= distance to it). 0 turns them off."""
 
     groups: int = 8
     rays_per_group: int = 128
@@ -57,9 +73,16 @@ class SamplingConfig:
     cache_cell: float = 0.04
     cache_every: int = 25
     near: float = 0.05
+    depth_points: int = 2048
+    depth_band: int = 2
+    depth_free: int = 1
+    depth_behind: float = 0.02
 
     def __post_init__(self):
         _check(self.groups >= 1 and self.rays_per_group >= 8, "sampling: need groups >= 1 and rays_per_group >= 8")
+        _check(self.depth_points >= 0 and self.depth_band >= 0 and self.depth_free >= 0,
+               "sampling: depth_points, depth_band and depth_free must be >= 0")
+        _check(0 <= self.depth_behind <= self.band, "sampling: need 0 <= depth_behind <= band")
         _check(self.fine >= 2 and self.uniform >= 0, "sampling: need fine >= 2 and uniform >= 0")
         _check(self.cache_cell > 0 and self.cache_every >= 1 and self.band > 0, "sampling: cache_cell, band > 0")
 
@@ -68,7 +91,8 @@ class SamplingConfig:
 class LossWeights:
     """rgb: L1; eikonal: (|grad s| - 1)^2; depth: rendered z-depth L1 against metric sensor depth;
     depth_sdf: s = 0 at observed depth points and a truncated projective SDF in front of them
-    (metric depth only); mono_depth: scale-and-shift invariant per group against the monocular
+    (metric depth only, on the rendered rays); depth_points: the same SDF terms on the cheap
+    depth points of ``sampling.depth_points`` (metric depth only); mono_depth: scale-and-shift invariant per group against the monocular
     prior; normal: L1 + (1 - cos) of rendered normals against the normal prior; sfm_depth:
     rendered depth at the pixels of SfM points (video captures)."""
 
@@ -76,6 +100,7 @@ class LossWeights:
     eikonal: float = 0.05
     depth: float = 0.5
     depth_sdf: float = 1.0
+    depth_points: float = 1.0
     mono_depth: float = 0.5
     normal: float = 0.05
     sfm_depth: float = 0.5

@@ -3,9 +3,11 @@
     s(x)   = s0(x) + mlp_sdf(enc(x))[0]          s0: geometric initialisation
     rgb    = sigmoid(mlp_rgb(mlp_sdf(enc(x))[1:], SH_2(view dir)))
 
-Geometric initialisation: s0 is the signed distance of an inside-out sphere enclosing the
-cameras (positive in the free space around them, as DRAWER's inside_outside init), and the
-last SDF layer starts at zero, so training starts from an exact SDF (|grad s| = 1) whatever the
+Geometric initialisation: s0 is the signed distance of an inside-out capsule (the points within
+``radius`` of a segment; a sphere when the segment is a point) around the cameras, positive in
+the free space around them, as DRAWER's inside_outside init; a capsule along a long camera path
+keeps every camera inside it, where one sphere of the viewing depth would leave the ends of a
+wide kitchen's run inside the solid (sdf/train.py: init_axis). The last SDF layer starts at zero, so training starts from an exact SDF (|grad s| = 1) whatever the
 encoding's random init. The SDF head has one hidden softplus layer, so its Jacobian is written
 out and grad s = ds0/dx + J_mlp . d enc / dx is exact and cheap (no double backward).
 """
@@ -36,7 +38,8 @@ class SDFField(nn.Module):
                  backend: str = "numba"):
         super().__init__()
         self.enc = MultiResGrid(lo, hi, n_levels, n_features, cell_coarse, cell_fine, log2_table, backend=backend)
-        self.register_buffer("center", torch.as_tensor(sphere_center, dtype=torch.float32))
+        c = torch.as_tensor(sphere_center, dtype=torch.float32)
+        self.register_buffer("center", c.expand(2, 3).clone() if c.dim() == 1 else c)  # [2, 3]: the segment
         self.radius = float(sphere_radius)
         D = self.enc.out_dim
         self.l1 = nn.Linear(D, hidden)
@@ -48,9 +51,11 @@ class SDFField(nn.Module):
         self.c2 = nn.Linear(color_hidden, 3)
 
     def _base(self, x: Tensor) -> tuple[Tensor, Tensor]:
-        r = x - self.center
+        a, ab = self.center[0], self.center[1] - self.center[0]
+        h = ((x - a) @ ab / (ab @ ab).clamp_min(1e-12)).clamp(0.0, 1.0)
+        r = x - a - h[:, None] * ab  # from the closest point of the segment
         n = r.norm(dim=-1, keepdim=True).clamp_min(1e-9)
-        return self.radius - n[:, 0], -r / n  # inside-out sphere: s0 and its gradient
+        return self.radius - n[:, 0], -r / n  # inside-out capsule: s0 and its gradient
 
     def sdf(self, x: Float[Tensor, "N 3"]) -> Float[Tensor, "N"]:
         """Signed distance only (no colour, no gradient): for sampling and mesh extraction."""

@@ -89,6 +89,9 @@ def load_field(path: Path) -> LoadedField:
     cfg = to_typed(NeuralConfig, d["config"], f"{path}:config")
     lo, hi = (np.asarray(b, np.float64) for b in d["box"])
     f = build_field(cfg, lo, hi, np.asarray(d["center"]), float(d["radius"]))
-    f.load_state_dict(d["state"])
+    state = dict(d["state"])
+    if state["center"].dim() == 1:  # fields saved before the capsule init: a sphere
+        state["center"] = state["center"].expand(2, 3).clone()
+    f.load_state_dict(state)
     f.eval()
     return LoadedField("neural", f.sdf, lo, hi, d["info"], field=f)

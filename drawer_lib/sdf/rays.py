@@ -98,6 +98,19 @@ class RayBank:
             groups,
         )
 
+    def sample_depth(self, n: int, gen: torch.Generator) -> tuple[Tensor, Tensor, Tensor]:
+        """Origins, directions [M, 3] and metric z-depths [M] of ``n`` pixels drawn uniformly over
+        all train pixels, keeping the M <= n with a valid (> 0) depth (needs ``self.depth``)."""
+        if self.depth is None:
+            raise ValueError("RayBank.sample_depth: the bank has no metric depth")
+        img = torch.randint(0, self.n_images, (n,), generator=gen)
+        pix = torch.randint(0, self.n_pixels, (n,), generator=gen)
+        z = self.depth[img, pix]
+        ok = z > 0
+        img, pix, z = img[ok], pix[ok], z[ok]
+        o, d = self.rays(img, pix)
+        return o, d, z
+
     def sample_sfm(self, n: int, gen: torch.Generator) -> tuple[Tensor, Tensor, Tensor] | None:
         """Rays through the pixels of ``n`` random SfM observations, with their depths."""
         if self.sfm is None:

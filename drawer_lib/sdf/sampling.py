@@ -77,3 +77,24 @@ def place_samples(cache: SdfCache, origins: Tensor, dirs: Tensor, lo: Tensor, hi
                                                 + torch.rand(R, n_uniform, generator=gen)) / max(n_uniform, 1)
     t = torch.cat([t_fine, t_uni], -1).clamp(tn[:, None], tf[:, None])
     return torch.sort(t, -1)[0], tn, tf
+
+
+def depth_ray_samples(z: Float[Tensor, "P"], ray_len: Float[Tensor, "P"], near: float, n_band: int, n_free: int,
+                      band: float, behind: float, gen: torch.Generator | None = None) -> Float[Tensor, "P K"]:
+    """Sample parameters t [P, n_band + n_free] (z-depths) along rays with observed depth ``z``:
+    ``n_band`` stratified over [z - band, z + behind] and ``n_free`` stratified over the free
+    space [near, z - band] in front of it (``band``, ``behind`` in metres along the ray; rays of
+    length ``ray_len`` per unit t). These need SDF values only: no colour, no volume rendering."""
+    P = z.shape[0]
+    to_t = 1.0 / ray_len
+    out = []
+    if n_band:
+        u = (torch.arange(n_band, dtype=torch.float32) + torch.rand(P, n_band, generator=gen)) / n_band
+        a, b = z - band * to_t, z + behind * to_t
+        out.append(a[:, None] + (b - a)[:, None] * u)
+    if n_free:
+        u = (torch.arange(n_free, dtype=torch.float32) + torch.rand(P, n_free, generator=gen)) / n_free
+        a = torch.full_like(z, near)
+        b = torch.maximum(z - band * to_t, a)
+        out.append(a[:, None] + (b - a)[:, None] * u)
+    return torch.cat(out, -1).clamp_min(near) if out else torch.zeros(P, 0)

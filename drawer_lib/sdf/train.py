@@ -13,15 +13,16 @@ from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.manifest import Manifest
 from drawer_lib.sdf import losses as L
-from drawer_lib.sdf.config import NeuralConfig
+from drawer_lib.sdf.config import NeuralConfig, SamplingConfig
 from drawer_lib.sdf.field import SDFField
 from drawer_lib.sdf.monocal import MonoCalResult, calibrate_mono_depth
 from drawer_lib.sdf.priors import make_estimator
 from drawer_lib.sdf.rays import RayBank, focus_depth, scene_box
 from drawer_lib.sdf.render import beta_schedule, laplace_density, render_weights
-from drawer_lib.sdf.sampling import SdfCache, place_samples
+from drawer_lib.sdf.sampling import SdfCache, depth_ray_samples, place_samples
 
 CACHE_MAX_VERTICES = 400_000
+DEPTH_TERMS = ("depth", "depth_sdf", "depth_points")  # scaled by priors.calibrated_weight on calibrated depth
 
 
 @dataclass
@@ -115,6 +116,18 @@ class NeuralSDF:
         return torch.cat(out)
 
 
+def init_axis(C: np.ndarray, kind: str) -> np.ndarray:
+    """The segment [2, 3] of the geometric initialisation (NetworkConfig.init) from camera
+    centres C [N, 3]: both ends at their mean (``sphere``), or the extent of the centres along
+    their principal axis (``capsule``)."""
+    c = C.mean(0)
+    if kind == "sphere" or len(C) < 2:
+        return np.stack([c, c])
+    e = np.linalg.svd(C - c, full_matrices=False)[2][0]
+    p = (C - c) @ e
+    return np.stack([c + p.min() * e, c + p.max() * e])
+
+
 def build_field(cfg: NeuralConfig, lo: np.ndarray, hi: np.ndarray, center: np.ndarray, radius: float) -> SDFField:
     e, n = cfg.encoding, cfg.network
     return SDFField(torch.tensor(lo, dtype=torch.float32), torch.tensor(hi, dtype=torch.float32),
@@ -129,7 +142,7 @@ class TrainResult:
     model: NeuralSDF
     lo: np.ndarray
     hi: np.ndarray
-    center: np.ndarray
+    center: np.ndarray  # [2, 3] the segment of the geometric initialisation
     radius: float
     steps: int
     train_s: float
@@ -138,6 +151,24 @@ class TrainResult:
     priors: PriorChoice
     last_losses: dict[str, float]
     calibration: MonoCalResult | None = None
+
+
+def depth_points_loss(field: Callable, o: Tensor, d: Tensor, z: Tensor, sc: SamplingConfig, trunc: float,
+                      gen: torch.Generator | None, grads: list[Tensor]) -> Tensor:
+    """The ``depth_sdf`` terms on cheap depth points (see SamplingConfig): SDF queries at the
+    back-projected depth points o + z d (rays [P, 3], z-depths [P] > 0) and along their rays,
+    no colour, no rendering. ``field(x, None, with_grad=True)`` -> (s, grad s, _). Appends the
+    points' SDF gradients to ``grads`` (for the eikonal term)."""
+    P = z.shape[0]
+    ray_len = d.norm(dim=-1)
+    t = depth_ray_samples(z, ray_len, sc.near, sc.depth_band, sc.depth_free, trunc, sc.depth_behind, gen)
+    K = t.shape[1]
+    x = torch.cat([o + d * z[:, None], (o[:, None] + d[:, None] * t[..., None]).reshape(-1, 3)])
+    s, g, _ = field(x, None, with_grad=True)
+    grads.append(g)
+    gs = g[P:].view(P, K, 3).detach()
+    cos = (F.normalize(gs, dim=-1) * (d / ray_len[:, None])[:, None]).sum(-1).abs()
+    return L.depth_sdf(s[:P], s[P:].view(P, K), t, z, ray_len, cos, trunc)
 
 
 def calibrate_bank(bank: RayBank, cfg: NeuralConfig, progress: Callable) -> MonoCalResult:
@@ -179,13 +210,14 @@ def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: 
         calib = calibrate_bank(bank, cfg, progress)
         train_s += time.perf_counter() - t0
     lo, hi, typical, how = scene_box(cap, bank, cfg.bounds.margin, cfg.bounds.far_factor, sparse)
-    center = bank.C.numpy().mean(0)
+    center = init_axis(bank.C.numpy(), cfg.network.init)
     field = build_field(cfg, lo, hi, center, typical)
     model = NeuralSDF(field, cfg, torch.tensor(lo, dtype=torch.float32), torch.tensor(hi, dtype=torch.float32))
     grid_params = [field.enc.table]
     mlp_params = [p for n, p in field.named_parameters() if not n.startswith("enc.")]
+    # fused: one kernel over the ~4M table entries, 4-5x faster on CPU than the per-op default
     opt = torch.optim.Adam([{"params": grid_params, "lr": cfg.lr_grid}, {"params": mlp_params, "lr": cfg.lr_mlp}],
-                           eps=1e-15)
+                           eps=1e-15, fused=True)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: cfg.lr_final_factor ** min(k / cfg.steps, 1.0))
     w = cfg.losses
     sc = cfg.sampling
@@ -193,19 +225,20 @@ def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: 
     w_depth = cfg.priors.calibrated_weight if pri.calibrated else 1.0
     last: dict[str, float] = {}
     step = 0
+    use_points = bank.depth is not None and sc.depth_points > 0 and w.depth_points > 0
     for step in progress(range(cfg.steps), desc="train", total=cfg.steps):
         t0 = time.perf_counter()
         if step % sc.cache_every == 0:
             model.refresh()
         beta = beta_schedule(step, cfg.steps, cfg.beta0, cfg.beta1)
+        trunc = max(sc.band, 4 * beta)
         b = bank.sample(sc.groups, sc.rays_per_group, gen)
         out = model.render(b.origins, b.dirs, beta, gen)
         terms: dict[str, Tensor] = {"rgb": L.rgb_l1(out.rgb, b.rgb)}
         grads = [out.grad.reshape(-1, 3)]
         # eikonal also at random points of the box, so empty space stays a distance field
         xr = model.lo + torch.rand(sc.groups * sc.rays_per_group, 3, generator=gen) * (model.hi - model.lo)
-        _, gr, _ = field(xr, None, with_grad=True)
-        terms["eikonal"] = L.eikonal(torch.cat(grads + [gr]))
+        grads.append(field(xr, None, with_grad=True)[1])
         if bank.depth is not None:
             terms["depth"] = L.depth_l1(out.depth, b.depth)
             ok = b.depth > 0
@@ -213,7 +246,7 @@ def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: 
             s_surf = field.sdf(x_surf) if ok.any() else torch.zeros(len(b.depth))
             ray_len = b.dirs.norm(dim=-1)
             cos = (F.normalize(out.grad.detach(), dim=-1) * (b.dirs / ray_len[:, None])[:, None]).sum(-1).abs()
-            terms["depth_sdf"] = L.depth_sdf(s_surf, out.s, out.t, b.depth, ray_len, cos, trunc=max(sc.band, 4 * beta))
+            terms["depth_sdf"] = L.depth_sdf(s_surf, out.s, out.t, b.depth, ray_len, cos, trunc)
         if pri.mono_depth:
             terms["mono_depth"] = L.scale_shift_invariant(out.depth.view(sc.groups, -1), b.mono_depth.view(sc.groups, -1))
         if pri.normal:
@@ -221,7 +254,11 @@ def train_neural_sdf(cap: Capture, manifest: Manifest, cfg: NeuralConfig, seed: 
         if pri.sfm:
             o, d, z = bank.sample_sfm(sc.rays_per_group, gen)
             terms["sfm_depth"] = L.depth_l1(model.render(o, d, beta, gen, with_color=False).depth, z)
-        total = sum(getattr(w, k) * v * (w_depth if k in ("depth", "depth_sdf") else 1.0) for k, v in terms.items())
+        if use_points:
+            o, d, z = bank.sample_depth(sc.depth_points, gen)
+            terms["depth_points"] = depth_points_loss(field, o, d, z, sc, trunc, gen, grads)
+        terms["eikonal"] = L.eikonal(torch.cat(grads))
+        total = sum(getattr(w, k) * v * (w_depth if k in DEPTH_TERMS else 1.0) for k, v in terms.items())
         if not torch.isfinite(total):
             bad = [k for k, v in terms.items() if not torch.isfinite(v)]
             raise NonFiniteError(f"sdf: loss terms {bad} are not finite at step {step} (beta = {beta:.3g})")
