@@ -206,3 +206,46 @@ def articulation_metrics(pred: PartsFile, gt: PartsFile, views: list[Camera]) ->
         out["ea_score"] = float(np.mean(eas))
         out["ea_score_min"] = float(np.min(eas))
     return out, details
+
+
+RIGID_IOU_MIN = 0.25
+
+
+def box_iou_3d(a: Float[np.ndarray, "N 2 3"], b: Float[np.ndarray, "M 2 3"]) -> Float[np.ndarray, "N M"]:
+    """IoU of axis-aligned boxes given as (min corner, max corner) in metres; 0 for empty boxes."""
+    a, b = np.asarray(a, np.float64).reshape(-1, 2, 3), np.asarray(b, np.float64).reshape(-1, 2, 3)
+    lo = np.maximum(a[:, None, 0], b[None, :, 0])
+    hi = np.minimum(a[:, None, 1], b[None, :, 1])
+    inter = np.clip(hi - lo, 0.0, None).prod(-1)
+    va = np.clip(a[:, 1] - a[:, 0], 0.0, None).prod(-1)
+    vb = np.clip(b[:, 1] - b[:, 0], 0.0, None).prod(-1)
+    union = va[:, None] + vb[None, :] - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def rigid_metrics(pred: PartsFile, gt: PartsFile, iou_min: float = RIGID_IOU_MIN) -> tuple[dict, list[dict]]:
+    """Rigid objects (beyond the paper): a predicted and a GT rigid part match when the IoU of
+    their axis-aligned ``bounds`` is >= ``iou_min``, greedy by IoU, one to one; precision =
+    matched / predicted, recall = matched / GT. Keys ``rigid_precision`` (absent with no
+    prediction), ``rigid_recall`` (absent with no GT object), counts; and per-GT-object details."""
+    P = [p for p in pred.parts if p.kind == "rigid" and p.bounds is not None]
+    G = [g for g in gt.parts if g.kind == "rigid" and g.bounds is not None]
+    iou = box_iou_3d(np.array([p.bounds for p in P]).reshape(-1, 2, 3), np.array([g.bounds for g in G]).reshape(-1, 2, 3))
+    pairs, used_p, used_g = {}, set(), set()
+    for flat in np.argsort(-iou, axis=None):
+        i, j = np.unravel_index(flat, iou.shape)
+        if iou[i, j] < iou_min:
+            break
+        if i in used_p or j in used_g:
+            continue
+        used_p.add(i)
+        used_g.add(j)
+        pairs[int(j)] = (int(i), float(iou[i, j]))
+    out: dict = {"n_rigid_pred": len(P), "n_rigid_gt": len(G), "n_rigid_matched": len(pairs)}
+    if P:
+        out["rigid_precision"] = len(pairs) / len(P)
+    if G:
+        out["rigid_recall"] = len(pairs) / len(G)
+    details = [{"gt": g.id, "pred": P[pairs[j][0]].id if j in pairs else None,
+                "iou": round(pairs[j][1], 4) if j in pairs else None} for j, g in enumerate(G)]
+    return out, details

@@ -1,5 +1,6 @@
 """What the ``evaluate`` stage does: ``parts.json`` against the capture's ``gt/parts.json`` ->
-precision, recall, EA-score (DESIGN §6) and which prediction matched which GT part."""
+precision, recall, EA-score (DESIGN §6), the rigid objects' precision / recall (3D box IoU >=
+0.25) and which prediction matched which GT part."""
 
 from pathlib import Path
 
@@ -8,7 +9,7 @@ from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
 from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import read_parts
-from drawer_lib.metrics.articulation import articulation_metrics
+from drawer_lib.metrics.articulation import articulation_metrics, rigid_metrics
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 
@@ -33,6 +34,12 @@ def run_evaluate(cap: Capture, parts_path: Path, run: StageRun) -> dict:
         res.pop("recall")
     if "ea_score" not in res:
         run.skip("ea_score", "no correctly predicted revolute part is visible in a test view")
-    write_json(run.out("matches"), {"parts": details})
+    rig, rig_details = rigid_metrics(pred, gt)
+    if "rigid_precision" not in rig:
+        run.skip("rigid_precision", "no rigid object predicted")
+    if "rigid_recall" not in rig:
+        run.skip("rigid_recall", "the ground truth has no rigid object")
+    write_json(run.out("matches"), {"parts": details, "rigid": rig_details})
     m.update(res)
+    m.update(rig)
     return m

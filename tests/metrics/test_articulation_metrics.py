@@ -83,3 +83,43 @@ def test_projection_clips_to_near_plane_and_image():
     seg = np.array([[0.0, 0.1, -1.0], [0.0, 0.1, 1.0]])  # crosses the camera plane: finite, clipped
     p = project_segment(seg, cam)
     assert p is not None and np.all(np.isfinite(p))
+
+
+def rigid(pid, lo, hi):
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return Part(pid, "rigid", center=tuple(((lo + hi) / 2).tolist()), bounds=(tuple(lo.tolist()), tuple(hi.tolist())))
+
+
+def test_box_iou_3d_against_a_slow_reference():
+    from drawer_lib.metrics.articulation import box_iou_3d
+
+    rng = np.random.default_rng(0)
+    a = np.sort(rng.uniform(0, 1, (7, 2, 3)), axis=1)
+    b = np.sort(rng.uniform(0, 1, (5, 2, 3)), axis=1)
+    b[0, 1] = b[0, 0]  # an empty (flat) box
+    ref = np.zeros((7, 5))
+    for i in range(7):
+        for j in range(5):
+            inter = np.prod([max(0.0, min(a[i, 1, k], b[j, 1, k]) - max(a[i, 0, k], b[j, 0, k])) for k in range(3)])
+            union = np.prod(a[i, 1] - a[i, 0]) + np.prod(b[j, 1] - b[j, 0]) - inter
+            ref[i, j] = inter / union if union > 0 else 0.0
+    np.testing.assert_allclose(box_iou_3d(a, b), ref, atol=1e-12)
+    assert box_iou_3d(a[:1], a[:1])[0, 0] == pytest.approx(1.0)
+    assert box_iou_3d(np.zeros((0, 2, 3)), b).shape == (0, 5)
+
+
+def test_rigid_metrics_match_one_to_one_at_iou_quarter():
+    from drawer_lib.metrics.articulation import rigid_metrics
+
+    gt = PartsFile((rigid("cup_0", (0, 0, 0), (0.1, 0.1, 0.1)), rigid("pot_0", (1, 0, 0), (1.2, 0.2, 0.2)),
+                    rigid("jar_0", (2, 0, 0), (2.1, 0.1, 0.1))))
+    pred = PartsFile((rigid("object_0", (0.01, 0, 0), (0.11, 0.1, 0.1)),       # IoU 0.82 with the cup
+                      rigid("object_1", (0.0, 0, 0), (0.1, 0.1, 0.1)),         # a duplicate of the cup: unmatched
+                      rigid("object_2", (1.1, 0, 0), (1.3, 0.2, 0.2)),         # IoU 1/3 with the pot
+                      rigid("object_3", (2.07, 0, 0), (2.17, 0.1, 0.1))))      # IoU 0.18 with the jar: too low
+    m, details = rigid_metrics(pred, gt)
+    assert m["n_rigid_matched"] == 2 and m["rigid_precision"] == pytest.approx(2 / 4)
+    assert m["rigid_recall"] == pytest.approx(2 / 3)
+    assert [d["pred"] for d in details] == ["object_1", "object_2", None]  # the exact duplicate wins the cup
+    m0, _ = rigid_metrics(PartsFile(()), gt)
+    assert "rigid_precision" not in m0 and m0["rigid_recall"] == 0.0
