@@ -1,0 +1,1 @@
+"""The twin: per-body Gaussians, joint motions and opened-state renders (stage ``twin``)."""

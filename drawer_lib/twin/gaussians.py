@@ -1,0 +1,147 @@
+"""Gaussians of a twin's bodies: read an INRIA-layout PLY back into :class:`Gaussians`, move a
+set rigidly (means, orientations and the view-dependent colour), and the rigid motion of a
+part's joint at ``q``.
+
+Moving Gaussians by a rotation R: means -> R m + t, orientations -> q_R * q, and the SH colour
+c(d) -> c(R^T d), i.e. every degree-l band of the coefficients is multiplied by a (2l+1)^2
+matrix. That matrix is found without Wigner formulas: the degree-l real SH span a space that
+rotations map to itself, so evaluating the basis at enough directions d_i and at R^T d_i and
+solving ``Y(R^T d) = Y(d) D`` in least squares gives D exactly (up to float error);
+:func:`sh_rotation` is tested against the definition c'(R d) = c(d).
+"""
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from jaxtyping import Float
+from torch import Tensor
+
+from drawer_lib.errors import InputError
+from drawer_lib.io.parts import Part
+from drawer_lib.splat.ply import read_gaussian_ply
+from drawer_lib.splat.render import Gaussians
+from drawer_lib.splat.sh import sh_to_color
+
+
+def load_gaussian_ply(path: Path) -> Gaussians:
+    """The activated Gaussians of an INRIA-layout PLY (:func:`drawer_lib.splat.ply.write_gaussian_ply`)."""
+    c = read_gaussian_ply(path)
+    need = {"x", "y", "z", "f_dc_0", "opacity", "scale_0", "rot_0"}
+    if not need <= set(c):
+        raise InputError(f"{path}: not a Gaussian PLY (missing {sorted(need - set(c))})")
+    n = len(c["x"])
+    k_rest = sum(k.startswith("f_rest_") for k in c) // 3
+    t = lambda *ks: torch.from_numpy(np.stack([c[k] for k in ks], -1).astype(np.float32))  # noqa: E731
+    rest = (t(*[f"f_rest_{i}" for i in range(3 * k_rest)]).view(n, 3, k_rest).transpose(1, 2)
+            if k_rest else torch.zeros(n, 0, 3))
+    sh = torch.cat([t("f_dc_0", "f_dc_1", "f_dc_2")[:, None], rest], 1)
+    return Gaussians(t("x", "y", "z"), t("rot_0", "rot_1", "rot_2", "rot_3"), torch.exp(t("scale_0", "scale_1", "scale_2")),
+                     torch.sigmoid(torch.from_numpy(c["opacity"].astype(np.float32))), sh)
+
+
+def subset(g: Gaussians, idx: Tensor | np.ndarray) -> Gaussians:
+    """The Gaussians at ``idx`` (indices or a boolean mask)."""
+    i = torch.as_tensor(idx)
+    return Gaussians(g.means[i], g.quats[i], g.scales[i], g.opacities[i], g.sh[i])
+
+
+def concat(gs: list[Gaussians]) -> Gaussians:
+    """One set of several (equal SH sizes)."""
+    return Gaussians(*(torch.cat([getattr(g, k) for g in gs]) for k in ("means", "quats", "scales", "opacities", "sh")))
+
+
+def rotmat_to_quat(R: Float[np.ndarray, "3 3"]) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, w >= 0)."""
+    R = np.asarray(R, np.float64)
+    tr = np.trace(R)
+    cands = np.array([1 + tr, 1 + 2 * R[0, 0] - tr, 1 + 2 * R[1, 1] - tr, 1 + 2 * R[2, 2] - tr])
+    k = int(np.argmax(cands))
+    s = 2.0 * np.sqrt(max(cands[k], 1e-300))
+    if k == 0:
+        q = [s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
+    elif k == 1:
+        q = [(R[2, 1] - R[1, 2]) / s, s / 4, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s]
+    elif k == 2:
+        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, s / 4, (R[1, 2] + R[2, 1]) / s]
+    else:
+        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, s / 4]
+    q = np.asarray(q)
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0 else -q
+
+
+def quat_mul(a: Float[Tensor, "... 4"], b: Float[Tensor, "... 4"]) -> Float[Tensor, "... 4"]:
+    """Hamilton product a * b of wxyz quaternions."""
+    aw, ax, ay, az = a.unbind(-1)
+    bw, bx, by, bz = b.unbind(-1)
+    return torch.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                        aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+
+
+def _fibonacci_dirs(n: int) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    r = np.sqrt(1 - z * z)
+    phi = np.pi * (3 - np.sqrt(5)) * i
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+
+
+def _sh_basis(dirs: np.ndarray, degree: int) -> np.ndarray:
+    """[M, (degree + 1)^2] the real SH basis of :func:`drawer_lib.splat.sh.sh_to_color` at ``dirs``."""
+    K = (degree + 1) ** 2
+    eps = 0.1  # coefficient k = eps e_k: |eps Y_k| < 0.5 stays clear of the colour's clamp at 0
+    eye = eps * torch.eye(K, dtype=torch.float64)[None].expand(len(dirs), K, K)
+    d = torch.from_numpy(dirs)
+    zero = torch.zeros(len(dirs), K, dtype=torch.float64)
+    cols = [(sh_to_color(torch.stack([eye[:, :, k], zero, zero], -1), d, degree)[:, 0] - 0.5) / eps for k in range(K)]
+    return torch.stack(cols, -1).numpy()
+
+
+def sh_rotation(R: Float[np.ndarray, "3 3"], degree: int) -> np.ndarray:
+    """[(degree + 1)^2, (degree + 1)^2] block-diagonal D with c'_k = sum_j D[k, j] c_j such that
+    the colour of the rotated coefficients in direction R d equals the original in direction d."""
+    K = (degree + 1) ** 2
+    dirs = _fibonacci_dirs(64)
+    Y = _sh_basis(dirs, degree)  # Y(d)
+    Yr = _sh_basis(dirs @ np.asarray(R, np.float64), degree)  # Y(R^T d): rows d_i^T R = (R^T d_i)^T
+    D = np.zeros((K, K))
+    for lvl in range(degree + 1):
+        s = slice(lvl * lvl, (lvl + 1) ** 2)
+        # c'(d) = c(R^T d): Y(d) c' = Y(R^T d) c for every c -> c' = lstsq(Y, Y(R^T d)) c
+        D[s, s] = np.linalg.lstsq(Y[:, s], Yr[:, s], rcond=None)[0]
+    return D
+
+
+def transform(g: Gaussians, R: Float[np.ndarray, "3 3"], t: Float[np.ndarray, "3"]) -> Gaussians:
+    """The Gaussians moved rigidly by x -> R x + t (means, orientations, SH colour)."""
+    Rt = torch.as_tensor(np.asarray(R), dtype=g.means.dtype)
+    means = g.means @ Rt.T + torch.as_tensor(np.asarray(t), dtype=g.means.dtype)
+    qr = torch.as_tensor(rotmat_to_quat(R), dtype=g.quats.dtype)
+    quats = quat_mul(qr.expand_as(g.quats), g.quats)
+    K = g.sh.shape[1]
+    degree = int(round(np.sqrt(K))) - 1
+    if (degree + 1) ** 2 != K:
+        raise InputError(f"Gaussians with {K} SH coefficients: not a full degree")
+    D = torch.as_tensor(sh_rotation(R, degree), dtype=g.sh.dtype)
+    sh = torch.einsum("kj,njc->nkc", D, g.sh)
+    return Gaussians(means, quats, g.scales, g.opacities, sh)
+
+
+def joint_motion(part: Part, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """(R [3, 3], t [3]) of the part's body at joint value ``q`` (rad or m): a rotation by q
+    about the axis line for a revolute part, a translation by q along it for a prismatic one
+    (DESIGN §5: positive q opens)."""
+    if not part.articulated:
+        raise InputError(f"part {part.id}: {part.kind} parts have no joint")
+    a = np.asarray(part.axis.direction, np.float64)
+    n = np.linalg.norm(a)
+    if not np.isfinite(n) or n < 1e-9 or not np.isfinite(q):
+        raise InputError(f"part {part.id}: axis direction {part.axis.direction} or q = {q} is not usable")
+    a = a / n
+    if part.kind == "prismatic":
+        return np.eye(3), a * q
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    R = np.eye(3) + np.sin(q) * K + (1 - np.cos(q)) * K @ K
+    o = np.asarray(part.axis.origin, np.float64)
+    return R, o - R @ o
