@@ -8,6 +8,7 @@
     │   └── CaptureError             a capture folder, image, depth map, detection or parts file
     ├── NonFiniteError (ArithmeticError)   a NaN or inf reached a place it must not pass
     └── InvariantError (RuntimeError)      a result broke a guarantee of the method (a bug)
+        └── TwinCheckError                 a built twin fails a physical check (names the part)
 
 Stage entry points (:func:`drawer_lib.runner.main_guard`) turn an :class:`InputError` into one
 line, ``error: <message>``, and exit code 2; the message names the file, frame or key. The other
@@ -39,3 +40,14 @@ class NonFiniteError(DrawerError, ArithmeticError):
 
 class InvariantError(DrawerError, RuntimeError):
     """A result violates a guarantee of the method (e.g. a Gaussian outside its face bounds)."""
+
+
+class TwinCheckError(InvariantError):
+    """A built twin fails a physical check (a part that does not open or passes its limit, a
+    penetration, an object that does not rest). The message names every failing part;
+    ``failures`` lists ``{"id", "check", "message"}`` and ``report`` holds what was measured."""
+
+    def __init__(self, message: str, failures: list[dict] | None = None, report: dict | None = None):
+        super().__init__(message)
+        self.failures = list(failures or [])
+        self.report = report

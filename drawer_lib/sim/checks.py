@@ -1,0 +1,321 @@
+"""Physical checks of a built twin (issue 18): does every part open, stop at its limits and stay
+clear of the scene, do rigid objects rest, does nothing blow up, and how fast does it simulate.
+
+Each part's drive and pull tests start from a fresh ``MjData`` (all joints at q = 0, every other
+control 0, so the other servos hold their parts like dampers). Non-finite states are caught both
+as NaN in ``qpos`` / ``qvel`` and through MuJoCo's warning counters (``data.warning``: MuJoCo
+resets a diverging simulation instead of returning NaN). All failures are collected and raised
+together, each naming its part: :class:`TwinCheckError` (with ``failures`` and the measured
+``report``), or :class:`NonFiniteError` when a simulation diverged.
+
+Penetration is measured on a copy of the model in which every collision geom collides with every
+other (the exported model may exclude part-vs-static contacts, see
+:mod:`drawer_lib.sim.mjcf`), from ``data.contact`` distances (MuJoCo's signed distance of the
+convex solids; negative = penetration depth).
+"""
+
+import copy
+import math
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from drawer_lib.errors import InputError, NonFiniteError, TwinCheckError
+from drawer_lib.sim.mjcf import GROUP_COLLISION, STATIC, part_index
+from drawer_lib.sim.model import PartBody, SimConfig, TwinModel
+
+_UNIT = {"revolute": "rad", "prismatic": "m"}
+_NONFINITE_WARNINGS = {mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                       mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADCTRL}
+
+
+class _Failures:
+    def __init__(self):
+        self.items: list[dict] = []
+        self.nonfinite = False
+
+    def add(self, oid: str, check: str, message: str, nonfinite: bool = False) -> None:
+        self.items.append({"id": oid, "check": check, "message": message})
+        self.nonfinite |= nonfinite
+
+
+def _health(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[str | None, bool]:
+    """(problem or None, whether it is non-finite) after a simulation: NaN / inf in the state or
+    a MuJoCo warning counter above 0."""
+    problems, nonfinite = [], False
+    if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+        problems.append("NaN or inf in qpos / qvel")
+        nonfinite = True
+    counts = np.asarray(d.warning.number)
+    for i in np.flatnonzero(counts > 0):
+        w = mujoco.mjtWarning(int(i))
+        problems.append(f"MuJoCo warning {w.name} x{int(counts[i])}")
+        nonfinite |= w in _NONFINITE_WARNINGS
+    return ("; ".join(problems) if problems else None), nonfinite
+
+
+def _run(m: mujoco.MjModel, d: mujoco.MjData, n: int, qadr: int) -> np.ndarray:
+    """Step ``n`` times; the joint value at qpos address ``qadr`` after each step [n]."""
+    q = np.empty(n)
+    for i in range(n):
+        mujoco.mj_step(m, d)
+        q[i] = d.qpos[qadr]
+    return q
+
+
+def _first_time(q: np.ndarray, level: float, dt: float) -> float | None:
+    hit = np.flatnonzero(q >= level)
+    return float((hit[0] + 1) * dt) if len(hit) else None
+
+
+def _owners(m: mujoco.MjModel, twin: TwinModel) -> tuple[np.ndarray, list[str]]:
+    """Per geom the index of its owner in ``names`` = ["static", *part ids, *rigid ids]
+    (-1 for geoms that do not collide: visual ones)."""
+    names = [STATIC, *(p.id for p in twin.parts), *(r.id for r in twin.rigid)]
+    body_owner = np.full(m.nbody, -1)
+    for k, name in enumerate(names):
+        b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+        if b >= 0:
+            body_owner[b] = k
+    owner = body_owner[m.geom_bodyid]
+    owner[m.geom_group != GROUP_COLLISION] = -1
+    return owner, names
+
+
+def _collide_all(m: mujoco.MjModel, owner: np.ndarray) -> mujoco.MjModel:
+    """A copy of ``m`` where every collision geom collides with every other, without margins."""
+    mc = copy.deepcopy(m)
+    col = owner >= 0
+    mc.geom_contype[:] = np.where(col, 1, 0)
+    mc.geom_conaffinity[:] = np.where(col, 1, 0)
+    mc.geom_margin[:] = 0.0
+    mc.geom_gap[:] = 0.0
+    # the broad phase filters body pairs by the OR of their geoms' bits, precomputed at compile
+    body_bits = np.zeros(m.nbody, np.int32)
+    np.bitwise_or.at(body_bits, m.geom_bodyid[col], 1)
+    mc.body_contype[:] = body_bits
+    mc.body_conaffinity[:] = body_bits
+    return mc
+
+
+def _penetrations(mc: mujoco.MjModel, d: mujoco.MjData, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """After ``mj_fwdPosition``: (owner a [C], owner b [C], depth [C] m > 0) of the penetrating
+    contacts between different owners."""
+    mujoco.mj_fwdPosition(mc, d)
+    n = d.ncon
+    if n == 0:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+    geom = np.asarray(d.contact.geom[:n])
+    depth = -np.asarray(d.contact.dist[:n])
+    a, b = owner[geom[:, 0]], owner[geom[:, 1]]
+    keep = (depth > 0) & (a >= 0) & (b >= 0) & (a != b)
+    return a[keep], b[keep], depth[keep]
+
+
+def _resolve(m: mujoco.MjModel, twin: TwinModel, fails: _Failures) -> dict[str, dict]:
+    """MuJoCo ids of every part and rigid object, checking the model matches the twin (names,
+    joint types, world axes, ranges)."""
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    out = {}
+    for p in twin.parts:
+        ix = part_index(m, p.id)
+        if min(ix["body"], ix["joint"], ix["actuator"]) < 0:
+            fails.add(p.id, "model", f"part {p.id!r}: the model lacks its body, joint or actuator")
+            continue
+        jtype = mujoco.mjtJoint.mjJNT_HINGE if p.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE
+        axis = d.xaxis[ix["joint"]]
+        rng = m.jnt_range[ix["joint"]]
+        if (m.jnt_type[ix["joint"]] != jtype or np.abs(axis - p.unit_axis).max() > 1e-6
+                or np.abs(rng - np.array(p.limits)).max() > 1e-9 or m.actuator_trnid[ix["actuator"], 0] != ix["joint"]):
+            fails.add(p.id, "model", f"part {p.id!r}: the model's joint (type {int(m.jnt_type[ix['joint']])}, axis "
+                      f"{np.round(axis, 6).tolist()}, range {rng.tolist()}) differs from the twin's "
+                      f"({p.kind}, {np.round(p.unit_axis, 6).tolist()}, {list(p.limits)}) or its actuator "
+                      "does not drive it")
+            continue
+        out[p.id] = ix
+    for r in twin.rigid:
+        b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, r.id)
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, r.id)
+        if b < 0 or j < 0 or m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
+            fails.add(r.id, "model", f"rigid object {r.id!r}: the model lacks its body or free joint")
+            continue
+        out[r.id] = {"body": b, "joint": j}
+    return out
+
+
+def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p: PartBody, ix: dict,
+                owner: np.ndarray, names: list[str], cfg: SimConfig, fails: _Failures) -> dict:
+    c, jc, dt = cfg.checks, cfg.joint(p.kind), m.opt.timestep
+    lo, hi = p.limits
+    unit = _UNIT[p.kind]
+    revolute = p.kind == "revolute"
+    rec: dict = {"kind": p.kind, "lo": lo, "hi": hi, "mass_kg": float(m.body_mass[ix["body"]]),
+                 "kv": float(-m.actuator_biasprm[ix["actuator"], 2])}
+
+    # drive: velocity target = drive speed (within the actuator's control range)
+    speed = jc.speed
+    if m.actuator_ctrllimited[ix["actuator"]]:
+        speed = min(speed, float(m.actuator_ctrlrange[ix["actuator"], 1]))
+    t_open = max(c.open_time, 1.2 * hi / speed)
+    n = math.ceil(t_open / dt)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    d.ctrl[ix["actuator"]] = speed
+    q = _run(m, d, n, ix["qpos"])
+    problem, nonfinite = _health(m, d)
+    tol = c.drive_overshoot_rad if revolute else c.drive_overshoot_m
+    rec.update(drive_time_s=t_open, drive_time_to_open_s=_first_time(q, c.open_fraction * hi, dt),
+               drive_max_q=float(np.nanmax(q)) if np.isfinite(q).any() else math.nan,
+               drive_final_q=float(q[-1]))
+    rec["drive_overshoot"] = max(0.0, rec["drive_max_q"] - hi) if math.isfinite(rec["drive_max_q"]) else math.nan
+    if problem:
+        fails.add(p.id, "drive", f"part {p.id!r}: drive test: the simulation is not healthy ({problem})", nonfinite)
+    elif rec["drive_time_to_open_s"] is None:
+        fails.add(p.id, "drive", f"part {p.id!r}: driven at {speed:.3g} {unit}/s it reached only "
+                  f"{max(q.max(), 0) / hi:.0%} of its upper limit {hi:.3g} {unit} in {t_open:.3g} s "
+                  f"(needs {c.open_fraction:.0%}): it is blocked")
+    elif rec["drive_overshoot"] > tol:
+        fails.add(p.id, "drive", f"part {p.id!r}: driven open it passed its upper limit {hi:.3g} {unit} by "
+                  f"{rec['drive_overshoot']:.3g} {unit} (max {tol:.3g})")
+
+    # a person's pull: force along a drawer's axis / torque about a hinge, actuators off
+    force = c.pull_torque if revolute else c.pull_force
+    d = mujoco.MjData(m_pull)
+    mujoco.mj_forward(m_pull, d)
+    d.qfrc_applied[ix["dof"]] = force
+    n = math.ceil(c.open_time / dt)
+    q = _run(m_pull, d, n, ix["qpos"])
+    problem, nonfinite = _health(m_pull, d)
+    tol = c.pull_overshoot_rad if revolute else c.pull_overshoot_m
+    level = lo + c.pull_fraction * (hi - lo)
+    rec.update(pull_force=force, pull_time_to_open_s=_first_time(q, level, dt),
+               pull_max_q=float(np.nanmax(q)) if np.isfinite(q).any() else math.nan, pull_final_q=float(q[-1]))
+    rec["pull_overshoot"] = max(0.0, rec["pull_max_q"] - hi) if math.isfinite(rec["pull_max_q"]) else math.nan
+    if problem:
+        fails.add(p.id, "pull", f"part {p.id!r}: pull test: the simulation is not healthy ({problem})", nonfinite)
+    elif rec["pull_time_to_open_s"] is None:
+        fails.add(p.id, "pull", f"part {p.id!r}: pulled with {force:.3g} {'N·m' if revolute else 'N'} it opened "
+                  f"only to q = {q.max():.3g} {unit} in {c.open_time:.3g} s (needs {c.pull_fraction:.0%} of "
+                  f"[{lo:.3g}, {hi:.3g}])")
+    elif rec["pull_overshoot"] > tol or q[-1] > hi + tol:
+        fails.add(p.id, "pull", f"part {p.id!r}: pulled open it passed its upper limit {hi:.3g} {unit} by "
+                  f"{rec['pull_overshoot']:.3g} {unit} (max {tol:.3g}): the limit does not hold it")
+
+    # along its path (0, hi]: penetration into the static scene
+    me = names.index(p.id)
+    d = mujoco.MjData(mc)
+    worst, worst_q = 0.0, 0.0
+    for qs in np.linspace(0.0, hi, c.path_samples + 1)[1:]:
+        d.qpos[:] = mc.qpos0
+        d.qpos[ix["qpos"]] = qs
+        a, b, depth = _penetrations(mc, d, owner)
+        hit = ((a == me) & (b == 0)) | ((b == me) & (a == 0))
+        if hit.any() and depth[hit].max() > worst:
+            worst, worst_q = float(depth[hit].max()), float(qs)
+    rec.update(path_penetration_m=worst, path_penetration_q=worst_q)
+    if worst > c.path_penetration:
+        fails.add(p.id, "path", f"part {p.id!r}: opening it, it penetrates the static scene by {worst * 1000:.1f} mm "
+                  f"at q = {worst_q:.3g} {unit} (max {c.path_penetration * 1000:.1f} mm): its axis or limit "
+                  "runs into the scene")
+    return rec
+
+
+def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConfig | None = None) -> dict:
+    """Check the physics of the compiled twin ``model`` (an ``MjModel`` or the path of its
+    ``scene.xml``) against its description ``twin``; return what was measured.
+
+    Checks (tolerances in ``cfg.checks``): the model matches the twin (names, types, axes,
+    ranges); every drive opens its part to 95 % of its upper limit within 3 s (or 1.2 x range /
+    drive speed when a long travel needs more) and passes the limit by <= 1° / 1 mm; a person's pull (20 N / 10 N·m as an applied generalised force,
+    actuation disabled) opens it to 90 % of its range within 3 s and the limit holds (<= 2° /
+    5 mm); at q = 0 no part penetrates the static scene or another part by > 2 mm, nor the static
+    scene along its path; rigid objects move < 1 cm in 2 s at rest; no NaN and no MuJoCo warning
+    anywhere. Simulation speed (steps/s, real-time factor) of the whole scene at rest is measured.
+
+    Returns: a dict of flat aggregates (``n_parts``, ``n_rigid``, ``drive_time_to_open_s_max``,
+    ``pull_time_to_open_s_max``, ``penetration_max_m``, ``path_penetration_max_m``,
+    ``rigid_drift_max_m``, ``sim_steps_per_s``, ``sim_realtime_factor``, ``check_wall_s``) plus
+    ``parts: {id: {...}}`` and ``rigid: {id: {...}}`` with the per-body numbers (SI units).
+    Raises: ``TwinCheckError`` / ``NonFiniteError`` naming every failing part.
+    """
+    cfg = cfg or SimConfig()
+    c = cfg.checks
+    t_start = time.perf_counter()
+    if isinstance(model, (str, Path)):
+        try:
+            m = mujoco.MjModel.from_xml_path(str(model))
+        except ValueError as e:
+            raise InputError(f"{model}: MuJoCo cannot load it ({e})") from e
+    else:
+        m = model
+    twin.validate()
+    fails = _Failures()
+    report: dict = {"n_parts": len(twin.parts), "n_rigid": len(twin.rigid), "parts": {}, "rigid": {}}
+    ids = _resolve(m, twin, fails)
+    owner, names = _owners(m, twin)
+    mc = _collide_all(m, owner)
+    m_pull = copy.deepcopy(m)
+    m_pull.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+
+    # at q = 0: part vs static scene and vs other parts
+    d = mujoco.MjData(mc)
+    a, b, depth = _penetrations(mc, d, owner)
+    n_static_parts = 1 + len(twin.parts)
+    for p in twin.parts:
+        if p.id not in ids:
+            continue
+        me = names.index(p.id)
+        hit = ((a == me) & (b < n_static_parts)) | ((b == me) & (a < n_static_parts))
+        k = int(np.argmax(np.where(hit, depth, -1.0))) if hit.any() else -1
+        pen = float(depth[k]) if k >= 0 else 0.0
+        other = names[b[k] if a[k] == me else a[k]] if k >= 0 else None
+        rec = _check_part(m, m_pull, mc, p, ids[p.id], owner, names, cfg, fails)
+        rec.update(penetration_m=pen, penetration_with=other)
+        report["parts"][p.id] = rec
+        if pen > c.penetration:
+            fails.add(p.id, "penetration", f"part {p.id!r}: at q = 0 it penetrates "
+                      f"{'the static scene' if other == STATIC else repr(other)} by {pen * 1000:.1f} mm "
+                      f"(max {c.penetration * 1000:.1f} mm)")
+
+    # the whole scene at rest: rigid objects stay, nothing diverges; simulation speed
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    rig = [r for r in twin.rigid if r.id in ids]
+    bodies = np.array([ids[r.id]["body"] for r in rig], int)
+    x0 = d.xpos[bodies].copy()
+    n = math.ceil(c.rest_time / m.opt.timestep)
+    t0 = time.perf_counter()
+    mujoco.mj_step(m, d, nstep=n)
+    wall = time.perf_counter() - t0
+    drift = np.linalg.norm(d.xpos[bodies] - x0, axis=1) if len(rig) else np.zeros(0)
+    problem, nonfinite = _health(m, d)
+    if problem:
+        fails.add("scene", "rest", f"the scene at rest: the simulation is not healthy ({problem})", nonfinite)
+    for r, dr, b in zip(rig, drift, bodies):
+        report["rigid"][r.id] = {"drift_m": float(dr), "mass_kg": float(m.body_mass[b])}
+        if not dr < c.rest_drift:
+            fails.add(r.id, "rest", f"rigid object {r.id!r}: at rest it moved {dr * 100:.2f} cm in {c.rest_time:.3g} s "
+                      f"(max {c.rest_drift * 100:.2f} cm): it does not rest on its support")
+
+    parts = report["parts"].values()
+
+    def _max(key: str) -> float | None:
+        vals = [v[key] for v in parts if v.get(key) is not None]
+        return float(max(vals)) if vals else None
+
+    report.update(
+        drive_time_to_open_s_max=_max("drive_time_to_open_s"), pull_time_to_open_s_max=_max("pull_time_to_open_s"),
+        penetration_max_m=_max("penetration_m"), path_penetration_max_m=_max("path_penetration_m"),
+        rigid_drift_max_m=float(drift.max()) if len(drift) else None,
+        sim_steps_per_s=n / wall if wall > 0 else None,
+        sim_realtime_factor=n * m.opt.timestep / wall if wall > 0 else None,
+        check_wall_s=time.perf_counter() - t_start)
+    if fails.items:
+        msg = f"{len(fails.items)} twin check(s) failed:\n" + "\n".join(f["message"] for f in fails.items)
+        if fails.nonfinite:
+            raise NonFiniteError(msg)
+        raise TwinCheckError(msg, fails.items, report)
+    return report

@@ -1,0 +1,192 @@
+"""Physical checks of the twin: every fixture passes; broken twins fail and name the part."""
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+import sim_fixtures as F
+from drawer_lib.errors import InputError, NonFiniteError, TwinCheckError
+from drawer_lib.sim.checks import check_twin
+from drawer_lib.sim.mjcf import build_spec, compile_spec, part_index, write_mjcf
+from drawer_lib.sim.model import ContactConfig, JointConfig, SimConfig, TwinModel
+
+
+@pytest.fixture(scope="module")
+def kitchen_report(tmp_path_factory):
+    twin = F.kitchen()
+    path = write_mjcf(build_spec(twin), tmp_path_factory.mktemp("twin") / "twin")
+    return twin, check_twin(path, twin)
+
+
+def test_kitchen_passes_every_check(kitchen_report):
+    twin, r = kitchen_report
+    c = SimConfig().checks
+    assert r["n_parts"] == 3 and r["n_rigid"] == 2
+    for p in twin.parts:
+        rec = r["parts"][p.id]
+        hi = p.limits[1]
+        rev = p.kind == "revolute"
+        tol = c.drive_overshoot_rad if rev else c.drive_overshoot_m
+        assert rec["drive_time_to_open_s"] <= 3.0 and rec["drive_overshoot"] <= tol
+        assert abs(rec["drive_final_q"] - hi) <= tol
+        assert rec["pull_time_to_open_s"] <= 3.0
+        assert rec["pull_overshoot"] <= (c.pull_overshoot_rad if rev else c.pull_overshoot_m)
+        assert rec["penetration_m"] <= 0.002 and rec["path_penetration_m"] <= 0.002
+        assert rec["mass_kg"] == pytest.approx(p.mass_properties().mass)
+    # the drive speed sets the opening time: door 90 deg at 50 deg/s = 1.8 s, drawer 0.4 m at 0.5 m/s = 0.8 s
+    assert 1.8 < r["parts"]["door_0"]["drive_time_to_open_s"] < 2.2
+    assert 0.76 < r["parts"]["drawer_0"]["drive_time_to_open_s"] < 1.0
+    for rid in ("cup_0", "cup_1"):
+        assert r["rigid"][rid]["drift_m"] < 1e-3
+    assert r["sim_steps_per_s"] > 0 and r["sim_realtime_factor"] == pytest.approx(r["sim_steps_per_s"] * 0.002)
+    assert r["penetration_max_m"] <= 0.002 and r["rigid_drift_max_m"] < 0.01
+
+
+def test_checks_also_pass_with_part_static_contacts():
+    """With part-vs-static contacts on, the carcass clearances keep every part free."""
+    cfg = SimConfig(contact=ContactConfig(part_static=True))
+    twin = F.kitchen()
+    r = check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
+    assert r["drive_time_to_open_s_max"] < 3.0
+
+
+def test_door_stops_at_its_limit_under_a_constant_drive():
+    twin = F.single(F.door_cabinet)
+    m = compile_spec(build_spec(twin))
+    ix = part_index(m, "door_0")
+    d = mujoco.MjData(m)
+    d.ctrl[ix["actuator"]] = m.actuator_ctrlrange[ix["actuator"], 1]
+    q = np.empty(2500)
+    for i in range(len(q)):  # 5 s
+        mujoco.mj_step(m, d)
+        q[i] = d.qpos[ix["qpos"]]
+    assert np.all(np.diff(q[q < 1.5]) >= -1e-9)  # opens monotonically
+    assert q.max() <= math.pi / 2 + math.radians(1) and abs(q[-1] - math.pi / 2) < math.radians(0.2)
+    assert abs(d.qvel[ix["dof"]]) < 1e-3  # at rest against the limit
+    # the door's free edge has swung out to the front (-y), about the hinge line
+    free_edge = d.xpos[ix["body"]] + d.xmat[ix["body"]].reshape(3, 3) @ np.array([0.5, 0, 0])
+    assert free_edge[1] == pytest.approx(-0.002 - 0.5, abs=2e-3) and free_edge[0] == pytest.approx(0.95, abs=2e-3)
+
+
+def test_a_cup_in_an_open_drawer_rides_along_when_it_closes():
+    """The cup stands on the bottom of the opened drawer; the drawer is driven closed (at half
+    the drive speed: at full speed the abrupt stop at q = 0 lets a cup slide ~2 cm, as a real
+    one would) and the cup moves with it to within 1 cm, on the drawer's bottom."""
+    walls, drawer = F.drawer_cabinet()
+    hi = drawer.limits[1]
+    cup = F.cup(0.0, 0.225 - hi, F.T + 0.003 + F.TD, "cup_0")  # centred on the open drawer's bottom
+    twin = TwinModel(static_collision=[F.floor(), *walls], parts=[drawer], rigid=[cup])
+    m = compile_spec(build_spec(twin))
+    ix = part_index(m, "drawer_0")
+    cb = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cup_0")
+    d = mujoco.MjData(m)
+    d.qpos[ix["qpos"]] = hi
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d, nstep=100)  # settle
+    c0, q0 = d.xpos[cb].copy(), float(d.qpos[ix["qpos"]])
+    d.ctrl[ix["actuator"]] = -0.5 * SimConfig().prismatic.speed
+    mujoco.mj_step(m, d, nstep=1500)
+    travel = (q0 - d.qpos[ix["qpos"]]) * np.array([0.0, 1.0, 0.0])  # closing moves it along +y
+    assert np.linalg.norm(travel) == pytest.approx(hi, abs=1e-3)
+    moved = d.xpos[cb] - c0
+    assert np.linalg.norm(moved - travel) < 0.01
+    assert abs(moved[2]) < 1e-3  # still standing on the drawer's bottom
+    assert (np.asarray(d.warning.number) == 0).all()
+
+
+def _failures(excinfo) -> set[tuple[str, str]]:
+    return {(f["id"], f["check"]) for f in excinfo.value.failures}
+
+
+def test_drawer_opening_into_the_back_wall_fails_and_is_named():
+    """Its axis points into the carcass: the path check names it (part-vs-static contacts
+    off); with them on, the drive and the pull are blocked too."""
+    twin = F.single(F.drawer_cabinet, reverse=True)
+    with pytest.raises(TwinCheckError, match="part 'drawer_0': opening it, it penetrates the static scene") as e:
+        check_twin(compile_spec(build_spec(twin)), twin)
+    assert _failures(e) == {("drawer_0", "path")}
+    assert e.value.report["parts"]["drawer_0"]["path_penetration_m"] > 0.01
+    cfg = SimConfig(contact=ContactConfig(part_static=True))
+    with pytest.raises(TwinCheckError, match="part 'drawer_0': driven at 0.5 m/s it reached only") as e:
+        check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
+    assert _failures(e) == {("drawer_0", "drive"), ("drawer_0", "pull"), ("drawer_0", "path")}
+
+
+def test_part_placed_inside_the_static_scene_fails_the_penetration_check():
+    """The drawer sunk 1 cm into the carcass bottom (3 mm clearance + 13 mm)."""
+    twin = F.single(F.drawer_cabinet, sink=0.013)
+    with pytest.raises(TwinCheckError) as e:
+        check_twin(compile_spec(build_spec(twin)), twin)
+    assert ("drawer_0", "penetration") in _failures(e)
+    assert "part 'drawer_0': at q = 0 it penetrates the static scene by 10.0 mm" in str(e.value)
+
+
+def test_overlapping_parts_fail_the_penetration_check():
+    walls, a = F.drawer_cabinet()
+    b = dataclasses.replace(a, id="drawer_1", collision=[c.shifted(np.array([0.0, 0.0, 0.005])) for c in a.collision])
+    twin = TwinModel(static_collision=walls, parts=[a, b])
+    with pytest.raises(TwinCheckError, match="penetrates 'drawer_1'"):
+        check_twin(compile_spec(build_spec(twin)), twin)
+
+
+def test_a_floating_cup_fails_the_rest_check():
+    twin = TwinModel(static_collision=[F.floor()], rigid=[F.cup(0.0, 0.0, 0.05, "cup_7")])
+    with pytest.raises(TwinCheckError, match="rigid object 'cup_7': at rest it moved 5.0") as e:
+        check_twin(compile_spec(build_spec(twin)), twin)
+    assert _failures(e) == {("cup_7", "rest")}
+
+
+def test_a_door_whose_limit_is_not_held_fails_the_pull_check():
+    """A soft joint limit (constraint time constant 0.2 s) lets a door slammed by the 10 N·m pull
+    pass its limit by more than 2°."""
+    cfg = SimConfig(contact=ContactConfig(limit_timeconst=0.2))
+    twin = F.single(F.door_cabinet)
+    with pytest.raises(TwinCheckError, match="part 'door_0': pulled open it passed its upper limit") as e:
+        check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
+    assert ("door_0", "pull") in _failures(e)
+
+
+def test_unstable_simulation_is_caught_through_the_warning_counters():
+    """Explicit Euler with an unlimited servo 100x stiffer than the step can integrate diverges; MuJoCo
+    resets the state (no NaN reaches qpos) but counts warnings: the check names the part."""
+    cfg = SimConfig(integrator="euler", prismatic=JointConfig(damping=10.0, armature=0.0, frictionloss=0.0,
+                                                                speed=0.5, drive_tau=1e-5, effort=1e12))
+    twin = F.single(F.drawer_cabinet)
+    with pytest.raises(NonFiniteError, match="part 'drawer_0': drive test: the simulation is not healthy .*BADQACC"):
+        check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
+
+
+def test_unloadable_model_file_is_an_input_error(tmp_path):
+    (tmp_path / "scene.xml").write_text("<mujoco><worldbody><geom type='mesh' mesh='nope'/></worldbody></mujoco>")
+    with pytest.raises(InputError, match="scene.xml: MuJoCo cannot load it"):
+        check_twin(tmp_path / "scene.xml", TwinModel())
+
+
+def test_model_that_does_not_match_the_twin_is_named():
+    twin = F.single(F.door_cabinet)
+    changed = TwinModel(static_collision=twin.static_collision,
+                        parts=[dataclasses.replace(twin.parts[0], limits=(0.0, 1.0))])
+    with pytest.raises(TwinCheckError, match="part 'door_0': the model's joint"):
+        check_twin(compile_spec(build_spec(twin)), changed)
+
+
+def test_tiny_part_drives_stably():
+    """A 3 x 3 cm drawer (~10 g, inertia ~1e-6 kg·m^2) opens under its drive without
+    warnings (the armature and the implicit servo keep it well conditioned)."""
+    shapes = F.drawer_box(-0.015, 0.015, 0.0, 0.02, 0.0, 0.03)
+    part = F.PartBody(id="tiny", kind="prismatic", axis_origin=np.zeros(3), axis_direction=np.array([0.0, -1.0, 0.0]),
+                      limits=(0.0, 0.025), visual=[], collision=shapes, density=600.0)
+    twin = TwinModel(static_collision=[F.floor()], parts=[part])
+    cfg = SimConfig(prismatic=JointConfig(damping=0.1, armature=0.0, frictionloss=0.01, speed=0.5))
+    m = compile_spec(build_spec(twin, cfg))
+    ix = part_index(m, "tiny")
+    assert m.body_mass[ix["body"]] == pytest.approx(part.mass_properties().mass, rel=1e-12)
+    assert m.body_mass[ix["body"]] < 0.02 and m.body_inertia[ix["body"]].max() < 1e-5
+    d = mujoco.MjData(m)
+    d.ctrl[ix["actuator"]] = 0.5
+    mujoco.mj_step(m, d, nstep=500)
+    assert d.qpos[ix["qpos"]] == pytest.approx(0.025, abs=1e-3)
+    assert (np.asarray(d.warning.number) == 0).all() and np.isfinite(d.qacc).all()
