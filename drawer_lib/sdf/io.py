@@ -1,6 +1,7 @@
 """``sdf/field.pt``: a neural field or a dense SDF grid (the TSDF baseline), and loading either as
 an SDF function for the mesh stage."""
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,6 +72,15 @@ class LoadedField:
     field: SDFField | None = None
 
 
+def _with_defaults(default: dict, saved: dict) -> dict:
+    """``saved`` over ``default``, recursively: keys a later version of the config added take
+    their default, so fields saved by earlier versions still load (unknown keys still fail)."""
+    out = dict(default)
+    for k, v in saved.items():
+        out[k] = _with_defaults(default[k], v) if isinstance(v, dict) and isinstance(default.get(k), dict) else v
+    return out
+
+
 def load_field(path: Path) -> LoadedField:
     path = Path(path)
     if not path.is_file():
@@ -86,7 +96,10 @@ def load_field(path: Path) -> LoadedField:
         return LoadedField("grid", g.sdf, g.lo, g.hi, d["info"], grid=g)
     from drawer_lib.sdf.train import build_field
 
-    cfg = to_typed(NeuralConfig, d["config"], f"{path}:config")
+    conf = _with_defaults(dataclasses.asdict(NeuralConfig()), d["config"])
+    if np.asarray(d["center"]).ndim == 1 and "init" not in d["config"].get("network", {}):
+        conf["network"]["init"] = "sphere"  # saved before the capsule init existed
+    cfg = to_typed(NeuralConfig, conf, f"{path}:config")
     lo, hi = (np.asarray(b, np.float64) for b in d["box"])
     f = build_field(cfg, lo, hi, np.asarray(d["center"]), float(d["radius"]))
     state = dict(d["state"])
