@@ -138,7 +138,7 @@ def geometry_summary(rows: list[dict], sdf: str) -> str:
     rs = [r for r in rows if "chamfer_l1" in r]
     if not rs:
         return ""
-    ch, f1, f2 = (np.array([r[k] for r in rs]) for k in ("chamfer_l1", "fscore_1cm", "fscore_2cm"))
+    ch, f1, f2 = (np.array([r.get(k, np.nan) for r in rs]) for k in ("chamfer_l1", "fscore_1cm", "fscore_2cm"))
     t = np.array([r.get("sdf_train_s", r.get("sdf_s", np.nan)) for r in rs])
     return ("| geometry | kitchens | Chamfer-L1 mean / worst | F@1cm mean / worst | F@2cm mean / worst | "
             "training s mean / max |\n|---|---|---|---|---|---|\n"

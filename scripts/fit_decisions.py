@@ -8,9 +8,11 @@ by the side of the GT hinge, flap_top / flap_bottom, sliding, or fixed for a fro
 contains; fronts inside a GT ignore box, fixed fronts that look articulated, carry no label),
 and fits a multinomial logistic model with an L2 penalty chosen by leave-kitchens-out
 cross-validation. The label-vote weights (lab_drawer, lab_door) are not fitted (the split's
-labels are generic) and keep their values from the current config, as does every hypothesis
-the split gives no example of (``fixed`` on our splits: every front the benchmark finds with
-no handle and little support is typed fixed by ``types.min_support`` before scoring).
+labels are generic) and keep their values from the current config. A hypothesis with fewer
+than ``--min-examples`` train examples (``fixed`` on our splits: 4 fronts, every one a
+stand-alone panel) gets only its bias fitted; its other weights are the hand-set ones of
+``drawer_lib/articulation/config.py`` — four examples would otherwise teach it whatever they
+happen to share (here: "no neighbour beside it").
 
     python scripts/fit_decisions.py --bench /tmp/bench_articulation/train            # report only
     python scripts/fit_decisions.py --bench /tmp/bench_articulation/train --write    # into conf/articulate/default.yaml
@@ -105,19 +107,26 @@ def scores(W: dict[str, torch.Tensor], Xc, Xd) -> torch.Tensor:
     return torch.stack(cols, -1)
 
 
-def fit(Xc, Xd, y, lam: float, fixed: dict[str, dict[str, float]]) -> dict[str, torch.Tensor]:
+def fit(Xc, Xd, y, lam: float, fixed: dict[str, dict[str, float]], min_examples: int = 0) -> dict[str, torch.Tensor]:
     """Weights minimising the mean cross-entropy + lam * sum of squared fitted weights; the
     hand-set label weights, and every weight of a hypothesis without examples in ``y``, stay
-    at ``fixed`` (the config's)."""
+    at ``fixed`` (the config's); a hypothesis with fewer than ``min_examples`` gets only its
+    bias fitted, its other weights from :func:`_default_weights` (hand-set)."""
+    from drawer_lib.articulation.config import _default_weights
+
+    hand = _default_weights()
     free_mask = torch.tensor([k not in FIXED_BY_HAND and k != "bias" for k in COMMON], dtype=torch.float64)
-    seen = {h.split("_")[0] if h.startswith("door_") else h for h in (HYPOTHESES[i] for i in y.unique().tolist())}
+    family = [h.split("_")[0] if h.startswith("door_") else h for h in HYPOTHESES]
+    n_of = {k: int(sum(int((y == i).sum()) for i, f in enumerate(family) if f == k)) for k in WEIGHT_SETS}
+    seen = {k for k, n in n_of.items() if n > 0}
+    few = {k for k, n in n_of.items() if 0 < n < min_examples}
     W, base, masks = {}, {}, {}
     for k in WEIGHT_SETS:
         names = COMMON + (DOOR_ONLY if k == "door" else ())
         W[k] = torch.zeros(len(names), dtype=torch.float64, requires_grad=True)
-        keep = [f in FIXED_BY_HAND or k not in seen for f in names]
-        base[k] = torch.tensor([fixed.get(k, {}).get(f, 0.0) if kp else 0.0 for f, kp in zip(names, keep)],
-                               dtype=torch.float64)
+        keep = [f in FIXED_BY_HAND or k not in seen or (k in few and f != "bias") for f in names]
+        base[k] = torch.tensor([(hand[k].get(f, 0.0) if k in few and f not in FIXED_BY_HAND else fixed.get(k, {}).get(f, 0.0))
+                                if kp else 0.0 for f, kp in zip(names, keep)], dtype=torch.float64)
         masks[k] = torch.tensor([0.0 if kp else 1.0 for kp in keep], dtype=torch.float64)
     opt = torch.optim.LBFGS(list(W.values()), lr=1, max_iter=500, tolerance_grad=1e-9, line_search_fn="strong_wolfe")
 
@@ -156,8 +165,10 @@ def yaml_block(W: dict[str, torch.Tensor]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bench", type=Path, required=True, help="a train-split benchmark folder (…/train)")
-    ap.add_argument("--lams", default="0.0001,0.0003,0.001,0.003,0.01,0.03,0.1")
+    ap.add_argument("--lams", default="0.00001,0.00003,0.0001,0.0003,0.001,0.003,0.01,0.03,0.1")
     ap.add_argument("--folds", type=int, default=5)
+    ap.add_argument("--min-examples", type=int, default=10,
+                    help="hypotheses with fewer train examples: only the bias is fitted (the rest hand-set)")
     ap.add_argument("--write", action="store_true", help="replace the weights block of conf/articulate/default.yaml")
     a = ap.parse_args()
     if a.bench.name != "train":
@@ -179,13 +190,13 @@ def main() -> None:
             tr, te = fold != f, fold == f
             if te.sum() == 0:
                 continue
-            W = fit(Xc[tr], Xd[tr], y[tr], lam, fixed)
+            W = fit(Xc[tr], Xd[tr], y[tr], lam, fixed, a.min_examples)
             correct += int((scores(W, Xc[te], Xd[te]).argmax(-1) == y[te]).sum())
         acc = correct / len(y)
         print(f"lambda {lam:g}: leave-kitchens-out accuracy {acc:.4f} ({correct}/{len(y)})")
         if best is None or acc >= best[1] - 1e-12:  # ties go to the larger penalty
             best = (lam, acc)
-    W = fit(Xc, Xd, y, best[0], fixed)
+    W = fit(Xc, Xd, y, best[0], fixed, a.min_examples)
     pred = scores(W, Xc, Xd).argmax(-1)
     print(f"chosen lambda {best[0]:g}; train accuracy {float((pred == y).double().mean()):.4f}")
     conf = np.zeros((len(HYPOTHESES), len(HYPOTHESES)), int)

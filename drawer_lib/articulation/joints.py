@@ -69,12 +69,13 @@ def hinge_axis(front: Front, hinge: str) -> Axis:
 def carcass_depth(front: Front, mesh_points: np.ndarray, mesh_normals: np.ndarray, cfg: JointsConfig) -> float | None:
     """Depth of the cabinet behind a front as the mesh shows it: a low percentile of the
     distances of the points facing the same way as the front (a wall or back panel) behind it,
-    within the front's u-range; None when the mesh shows too few."""
+    within the front's rectangle (its u- and v-range: the fronts of the wall cabinets above a
+    base cabinet face the same way but are not behind it); None when the mesh shows too few."""
     c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
     rel = mesh_points - c
     d = -(rel @ n)
     sel = ((d > cfg.carcass_min_depth) & (d < cfg.carcass_max_depth) & (np.abs(rel @ u) < front.size[0] / 2)
-           & ((mesh_normals @ n) > cfg.carcass_normal_cos))
+           & (np.abs(rel @ front.v) < front.size[1] / 2) & ((mesh_normals @ n) > cfg.carcass_normal_cos))
     if sel.sum() < cfg.carcass_min_points:
         return None
     return float(np.percentile(d[sel], cfg.carcass_percentile))

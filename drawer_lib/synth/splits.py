@@ -6,13 +6,13 @@ counts). Kitchen ``k`` of a split is a fixed function of ``(split, k)``.
 |---|---|---|
 | modules | 3-5 base, 2-4 wall, 0-1 tall, 0-1 fixed fronts | 3-6 base, 2-5 wall, 0-2 tall, 0-2 fixed fronts |
 | widths (single / double) | 0.40-0.60 / 0.8-0.9 m | 0.30-0.35, 0.55-0.80 / 0.7, 1.0, 1.1 m |
-| carcass | 0.72 high, 0.58 deep, 19 mm fronts, 3 mm gaps | 0.78 high, 0.62 deep, 22 mm fronts, 4 mm gaps |
-| wall cabinets | 0.70 high, from 1.45 m | 0.60 or 0.85 high, from 1.50 m |
-| tall units | 2.05 m, 0.60 wide | 2.10 m, 0.70 or 0.75 wide |
+| carcass (train: uniform per kitchen) | 0.70-0.76 high, 0.55-0.60 deep, 8-12 cm plinth, 16-21 mm fronts, 2-3.5 mm gaps | 0.78 high, 0.62 deep, 12 cm plinth, 22 mm fronts, 4 mm gaps |
+| wall cabinets | 0.62-0.78 high, 0.30-0.34 deep, from 1.40-1.50 m | 0.60 or 0.85 high, 0.35 deep, from 1.50 m |
+| tall units | 1.95-2.08 m, 0.55-0.68 wide | 2.10 m, 0.70 or 0.75 wide |
 | handle styles (one per kitchen) | bar, knob, edge, recessed | bar, small_knob, edge, recessed |
 | fronts without a handle | 8 % | 15 % |
 | appliances | oven, dishwasher (weights 1.2), a microwave in half the kitchens | oven, dishwasher (1.0), a microwave in every kitchen |
-| sliding doors (two panels / one on a rail) | weights 1.0 / 1.2; even k require one on a rail, odd k a pair and a flap | 0.8 / 1.0 |
+| sliding doors (two panels / one on a rail) | weights 1.0 / 1.2; k = 0, 4, .. require one on a rail, k = 2, 6, .. a pair and a flap | 0.8 / 1.0 |
 | kitchen yaw | +-25 deg | +-45 deg |
 | frames | 200x150 x 48, every 4th kitchen (k = 3, 7, ..) 320x240 x 60 | the same, at k = 1, 5, .. |
 
@@ -49,10 +49,18 @@ def split_synth(split: str, k: int) -> dict:
             "no_handle_p": 0.08,
             "microwaves": int(g.integers(0, 2)),
             "yaw_deg": [-25.0, 25.0],
-            # every other kitchen requires a sliding door without a partner instead of a top-hinged
-            # flap and a sliding pair (else it is rare: the wall run drops modules until it fits)
-            "require_types": ["drawers", "door"] + (["sliding_single"] if k % 2 == 0 else ["flap_up", "sliding"]),
+            # every 4th kitchen requires a sliding door without a partner, every other 4th a
+            # top-hinged flap and a sliding pair (else they are rare: the wall run drops modules
+            # until it fits); odd k require neither, so the wall runs are not mostly sliding doors
+            "require_types": ["drawers", "door"] + {0: ["sliding_single"], 2: ["flap_up", "sliding"]}.get(k % 4, []),
         }
+        # sizes randomised per kitchen around the default kitchen's (domain randomisation), in
+        # ranges that leave most of the test split's values outside
+        u = lambda lo, hi: round(float(g.uniform(lo, hi)), 4)  # noqa: E731
+        layout |= {"carcass_height": u(0.70, 0.76), "base_depth": u(0.55, 0.60), "plinth_height": u(0.08, 0.12),
+                   "wall_bottom": u(1.40, 1.50), "wall_height": u(0.62, 0.78), "wall_depth": u(0.30, 0.34),
+                   "tall_height": u(1.95, 2.08), "tall_width": u(0.55, 0.68), "front_thickness": u(0.016, 0.021),
+                   "front_gap": u(0.002, 0.0035)}
         camera = _CAM_LARGE if k % 4 == 3 else _CAM_SMALL
         return {"seed": 100 + k, "layout": layout, "camera": dict(camera)}
     layout = {

@@ -292,3 +292,20 @@ def test_learned_estimator_slots_say_why_they_cannot_run():
         get_estimator("nope")
     with pytest.raises(ConfigError):
         TypesConfig(edge_frac=0.7)
+
+
+def test_carcass_depth_ignores_fronts_above_that_face_the_same_way():
+    """A wall cabinet's front above and 0.25 m behind a base front faces like it, but it is not
+    the carcass behind it: the depth stays the wall's 0.6 m (it was 0.25 before)."""
+    from drawer_lib.articulation.config import JointsConfig
+    from drawer_lib.articulation.joints import carcass_depth
+    from drawer_lib.io.parts import Front
+
+    wall_cab = box([X0, Y + 0.25, 1.45], [X1, Y + 0.27, 2.15]).subdivide().subdivide()
+    mesh = trimesh.util.concatenate([box([-0.5, 0.0, 0.0], [1.0, 0.02, 2.4]), wall_cab])
+    pts, idx = trimesh.sample.sample_surface_even(mesh, 20000, seed=0)
+    nrm = np.asarray(mesh.face_normals)[idx]
+    front = Front((0.25, Y, 0.45), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.7))
+    assert carcass_depth(front, np.asarray(pts), nrm, JointsConfig()) == pytest.approx(0.6, abs=0.01)
+    high = Front((0.25, Y, 1.8), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.7))  # level with the wall cabinet
+    assert carcass_depth(high, np.asarray(pts), nrm, JointsConfig()) == pytest.approx(0.25, abs=0.01)
