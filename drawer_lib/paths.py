@@ -39,6 +39,9 @@ LAYOUT = {
                   "face_labels": "decompose/face_labels.npz", "mesh": "decompose/perception_mesh.ply"},
     "articulate": {"dir": "articulate", "parts": "articulate/parts.json", "decisions": "articulate/decisions.json"},
     "evaluate": {"dir": "evaluate", "matches": "evaluate/matches.json"},
+    "complete": {"dir": "complete", "index": "complete/complete.json"},
+    "twin": {"dir": "twin", "mjcf": "twin/scene.xml", "urdf": "twin/urdf/scene.urdf", "usd": "twin/scene.usda",
+             "index": "twin/twin.json", "gaussians": "twin/gaussians", "renders": "twin/renders"},
     "appearance": {"dir": "appearance", "model": "model", "renders": "renders"},  # inside appearance/<variant>/
     "report": {"table": "table.md", "table_json": "table.json", "plot": "curves.png"},  # inside reports/<name>/
     "metrics": "metrics.json",  # in every stage folder

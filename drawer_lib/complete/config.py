@@ -6,6 +6,7 @@ Lengths in metres, angles in degrees, densities in kg/m^3.
 
 from dataclasses import dataclass, field
 
+from drawer_lib.complete.interiors_config import InteriorsConfig
 from drawer_lib.errors import ConfigError
 
 
@@ -93,10 +94,10 @@ class StaticCollisionConfig:
     yaw_bin_deg: float = 0.5
     up_cos: float = 0.5
     shell_depth: float = 0.08
-    carve_inflate: float = 0.5
+    carve_inflate: float = 1.0
     min_island_voxels: int = 4
     overlap: bool = True
-    fill_tol: float = 0.25
+    fill_tol: float = 0.0
     chunk: int = 200_000
     fidelity_points: int = 20_000
 
@@ -187,3 +188,37 @@ class CompleteGeometryConfig:
     cut: CutConfig = field(default_factory=CutConfig)
     static: StaticCollisionConfig = field(default_factory=StaticCollisionConfig)
     rigid: RigidConfig = field(default_factory=RigidConfig)
+
+
+@dataclass(frozen=True)
+class GaussiansConfig:
+    """The bodies' Gaussians: the appearance variant whose model they come from
+    (``out/<scene>/appearance/<variant>/model``), and the flat Gaussians that cover the
+    interiors (``spacing`` m between them, ``opacity``)."""
+
+    variant: str = "movable_gs_ste"
+    spacing: float = 0.02
+    opacity: float = 0.95
+
+    def __post_init__(self):
+        _check(self.spacing > 0 and 0 < self.opacity <= 1, "complete.gaussians: need spacing > 0, opacity in (0, 1]")
+
+
+@dataclass(frozen=True)
+class CompleteConfig:
+    """The ``complete`` stage (conf/complete/default.yaml): cut, static collision, rigid solids,
+    interiors and the bodies' Gaussians. ``sample_per_m2``: mesh points per m^2 the interiors
+    measure their depths on; ``collision_clearance`` (m): a part's collision panel is inset by
+    this on every side (reconstructed fronts abut and must not touch at q = 0)."""
+
+    cut: CutConfig = field(default_factory=CutConfig)
+    static: StaticCollisionConfig = field(default_factory=StaticCollisionConfig)
+    rigid: RigidConfig = field(default_factory=RigidConfig)
+    interiors: InteriorsConfig = field(default_factory=InteriorsConfig)
+    gaussians: GaussiansConfig = field(default_factory=GaussiansConfig)
+    sample_per_m2: float = 20000.0
+    collision_clearance: float = 0.005
+
+    def __post_init__(self):
+        _check(self.sample_per_m2 > 0, "complete.sample_per_m2 must be > 0")
+        _check(0 <= self.collision_clearance < 0.05, "complete.collision_clearance must be in [0, 0.05) m")

@@ -311,12 +311,13 @@ class StaticCollision:
     stats: dict
 
 
-def static_collision(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, field=None, carvers: Sequence = ()
-                     ) -> StaticCollision:
+def static_collision(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, field=None, carvers: Sequence = (),
+                     exact_carvers: Sequence = ()) -> StaticCollision:
     """Boxes for the static scene. ``mesh``: the static visual mesh (world, m; its extent bounds
     the grid and its faces give the yaw); ``field``: a :class:`~drawer_lib.sdf.io.LoadedField`
     (``.sdf``, ``.lo``, ``.hi``), needed for ``source: field``; ``carvers``: swept volumes and
-    cavities to empty (see :func:`carve`). Raises :class:`InputError` when ``source: field`` has
+    cavities to empty (see :func:`carve`), grown by ``carve_inflate`` cells; ``exact_carvers``
+    the same, not grown. Raises :class:`InputError` when ``source: field`` has
     no field (set ``complete.static.source: mesh`` for captures without one)."""
     t0 = time.perf_counter()
     if len(mesh.faces) == 0:
@@ -338,6 +339,9 @@ def static_collision(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, field=No
     if cfg.shell_depth > 0:
         grid, n_far = near_surface(grid, mesh, cfg.shell_depth)
     grid, n_carved = carve(grid, list(carvers), cfg.carve_inflate * cfg.cell)
+    if exact_carvers:  # volumes emptied cell centre by cell centre, not grown (a rigid object above its support)
+        grid, n_exact = carve(grid, list(exact_carvers), 0.0)
+        n_carved += n_exact
     occ, n_islands = drop_islands(grid.occ, cfg.min_island_voxels)
     grid = grid.with_occ(occ)
     t3 = time.perf_counter()

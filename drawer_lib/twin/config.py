@@ -1,0 +1,40 @@
+"""Config of the ``twin`` stage (conf/twin/default.yaml): the simulation model and its checks
+(:class:`drawer_lib.sim.model.SimConfig`) and the opened-state renders."""
+
+from dataclasses import dataclass, field
+
+from drawer_lib.errors import ConfigError
+from drawer_lib.sim.model import SimConfig
+
+
+@dataclass(frozen=True)
+class RendersConfig:
+    """Opened-state renders (DESIGN §5b ``renders/``): each part at ``open_fraction`` of its
+    range in every test view (``max_views`` caps them; 0: all), SH degree ``sh_degree``, on a
+    ``background`` RGB; ``lpips``: also score LPIPS (AlexNet) against the synthetic reference;
+    ``sheet_width``: pixels per tile of the contact sheet (GT | twin, one row per part)."""
+
+    open_fraction: float = 0.5
+    max_views: int = 0
+    sh_degree: int = 3
+    background: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    lpips: bool = True
+    sheet_width: int = 200
+
+    def __post_init__(self):
+        if not 0.0 < self.open_fraction <= 1.0:
+            raise ConfigError(f"twin.renders.open_fraction = {self.open_fraction} must be in (0, 1]")
+        if len(self.background) != 3 or not all(0.0 <= c <= 1.0 for c in self.background):
+            raise ConfigError(f"twin.renders.background = {self.background} must be an RGB in [0, 1]")
+        if self.max_views < 0 or not 0 <= self.sh_degree <= 3 or self.sheet_width < 16:
+            raise ConfigError("twin.renders: need max_views >= 0, sh_degree in [0, 3], sheet_width >= 16")
+
+
+@dataclass(frozen=True)
+class TwinConfig:
+    """``check``: run the physical checks before writing (a failing check is an error naming the
+    part); ``renders``: the opened-state renders; ``sim``: the MuJoCo model."""
+
+    check: bool = True
+    sim: SimConfig = field(default_factory=SimConfig)
+    renders: RendersConfig = field(default_factory=RendersConfig)

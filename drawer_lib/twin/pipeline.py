@@ -1,0 +1,227 @@
+"""What the ``twin`` stage does: ``complete/`` + ``parts.json`` -> ``twin/`` in the format of
+DESIGN §5b.
+
+1. the bodies of ``complete/`` (static scene, articulated parts, rigid objects) as a
+   :class:`~drawer_lib.sim.model.TwinModel`, validated;
+2. ``scene.xml`` (+ ``assets/``) built with ``MjSpec``, compiled and checked before anything is
+   written (every drive opens its part, a person's pull opens it, the limits hold, nothing
+   penetrates, rigid objects rest, no NaN or MuJoCo warning; :func:`drawer_lib.sim.checks.
+   check_twin`) — a failing check is an error naming the part;
+3. ``urdf/scene.urdf`` and ``scene.usda``;
+4. ``gaussians/static.ply`` and ``gaussians/<id>.ply`` (INRIA layout, world frame at q = 0) and
+   ``visual.glb`` (the visual meshes, one node per body);
+5. ``renders/<id>/<stem>.png`` + ``renders/index.json``: the twin's Gaussians in every test view
+   with part ``<id>`` opened to ``renders.open_fraction`` of its range, every other part closed;
+6. on a synthetic scene, the opened-state scores against the scene's own model posed with the
+   matched GT part at the same q (``open_psnr``, ``open_ssim``, ``open_lpips``,
+   ``open_region_psnr``; DESIGN §6), the closed twin's scores against the capture's test
+   images (``closed_psnr`` ...), and ``renders/contact_sheet.png`` (GT | twin, a row per part);
+7. ``twin.json``.
+"""
+
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+from PIL import Image
+
+from drawer_lib.capture.config import SceneConfig
+from drawer_lib.complete.io import STATIC, read_complete
+from drawer_lib.errors import InputError
+from drawer_lib.io.capture import Capture
+from drawer_lib.io.images import write_json, write_rgb
+from drawer_lib.io.parts import Part, read_parts
+from drawer_lib.metrics.articulation import match_parts
+from drawer_lib.metrics.image import psnr, ssim
+from drawer_lib.paths import capture_name
+from drawer_lib.runner import StageRun
+from drawer_lib.sim.checks import check_twin
+from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
+from drawer_lib.sim.urdf import write_urdf
+from drawer_lib.sim.usd import write_usd
+from drawer_lib.splat.render import Gaussians
+from drawer_lib.synth.config import RenderConfig
+from drawer_lib.twin.config import TwinConfig
+from drawer_lib.twin.gaussians import concat, load_gaussian_ply
+from drawer_lib.twin.renders import opened_q, region_psnr, render_opened
+
+SCHEMA = "drawer.twin/1"
+
+
+def _empty_gaussians(k: int) -> Gaussians:
+    return Gaussians(torch.zeros(0, 3), torch.zeros(0, 4), torch.zeros(0, 3), torch.zeros(0), torch.zeros(0, k, 3))
+
+
+def _visual_glb(model, path: Path) -> None:
+    scene = trimesh.Scene()
+    for name, shapes in [(STATIC, model.static_visual)] + [(b.id, b.visual) for b in model.bodies()]:
+        meshes = [trimesh.Trimesh(*s.triangles(), process=False) for s in shapes]
+        if meshes:
+            scene.add_geometry(trimesh.util.concatenate(meshes), node_name=name, geom_name=name)
+    scene.export(path)
+
+
+def _score(pred: list[torch.Tensor], gt: list[torch.Tensor], regions: list[np.ndarray] | None, with_lpips: bool) -> dict:
+    x = torch.stack(pred).permute(0, 3, 1, 2).clamp(0, 1)
+    y = torch.stack(gt).permute(0, 3, 1, 2)
+    out = {"psnr": psnr(x, y).tolist(), "ssim": ssim(x, y).tolist()}
+    if with_lpips:
+        from drawer_lib.metrics.lpips import lpips
+
+        out["lpips"] = lpips(x, y).tolist()
+    if regions is not None:
+        out["region_psnr"] = [region_psnr(p, g, m) for p, g, m in zip(pred, gt, regions)]
+    return out
+
+
+def _tile(img: np.ndarray, width: int) -> np.ndarray:
+    h = max(1, round(img.shape[0] * width / img.shape[1]))
+    return np.asarray(Image.fromarray(img).resize((width, h), Image.BILINEAR))
+
+
+def run_twin(cfg: TwinConfig, cap: Capture, parts_path: Path, complete_dir: Path, run: StageRun,
+             scene: SceneConfig | None = None, render_cfg: RenderConfig | None = None) -> dict:
+    """Build, check and write the twin (see the module doc); ``scene``: the scene config, whose
+    ``synth`` block (synthetic scenes only) gives the opened-state reference, rendered with
+    ``render_cfg`` (the capture's ``capture.render``, so that it equals the capture at q = 0)."""
+    if not parts_path.is_file():
+        raise InputError(f"{parts_path}: missing (run the articulate stage first)")
+    parts = read_parts(parts_path)
+    by_id = {p.id: p for p in parts.parts}
+    model, gfiles, cj = read_complete(complete_dir)
+    model.validate()
+    for b in model.bodies():
+        if b.id not in by_id:
+            raise InputError(f"{complete_dir}: body {b.id!r} is not a part of {parts_path}")
+    m: dict = {"n_parts": len(model.parts), "n_rigid": len(model.rigid),
+               "n_static_collision": len(model.static_collision),
+               "n_part_collision": sum(len(p.collision) for p in model.parts)}
+    out = run.dir
+
+    # 1-2: MJCF, compiled and checked before anything else is written
+    t0 = time.perf_counter()
+    spec = build_spec(model, cfg.sim)
+    compile_spec(spec)
+    m["build_s"] = round(time.perf_counter() - t0, 3)
+    write_mjcf(spec, out)
+    if cfg.check:
+        t0 = time.perf_counter()
+        rep = check_twin(out / "scene.xml", model, cfg.sim)
+        m["check_s"] = round(time.perf_counter() - t0, 3)
+        m.update({f"sim_{k}": v for k, v in rep.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
+        write_json(out / "checks.json", rep)
+    else:
+        run.skip("checks", "twin.check = false")
+    # 3: URDF, USD
+    t0 = time.perf_counter()
+    write_urdf(model, out, cfg.sim)
+    write_usd(model, out, cfg.sim)
+    _visual_glb(model, out / "visual.glb")
+    m["export_s"] = round(time.perf_counter() - t0, 3)
+
+    # 4: Gaussians per body
+    (out / "gaussians").mkdir()
+    gauss: dict[str, Gaussians] = {}
+    for bid, f in gfiles.items():
+        shutil.copyfile(f, out / "gaussians" / f"{bid}.ply")
+        gauss[bid] = load_gaussian_ply(f)
+    k = next(iter(gauss.values())).sh.shape[1] if gauss else (cfg.renders.sh_degree + 1) ** 2
+    static = concat([gauss.get(STATIC, _empty_gaussians(k))] + [gauss[r.id] for r in model.rigid if r.id in gauss])
+    bodies = {p.id: gauss.get(p.id, _empty_gaussians(k)) for p in model.parts}
+    m["n_gaussians"] = int(len(static.means) + sum(len(g.means) for g in bodies.values()))
+
+    twin_json = {"schema": SCHEMA, "parts": [], "static": {
+        "body": "static", "gaussians": "gaussians/static.ply" if STATIC in gauss else None,
+        "collision": [s["kind"] for s in next(b for b in cj["bodies"] if b["id"] == STATIC)["collision"]]}}
+    raw = {b["id"]: b for b in cj["bodies"]}
+    for b in model.bodies():
+        twin_json["parts"].append({"id": b.id, "kind": by_id[b.id].kind, "body": b.id, "joint": b.id,
+                                   "actuator": b.id if by_id[b.id].articulated else None,
+                                   "gaussians": f"gaussians/{b.id}.ply" if b.id in gauss else None,
+                                   "collision": raw[b.id]["collision"], "interior": raw[b.id].get("interior", {})})
+    write_json(out / "twin.json", twin_json)
+
+    # 5-6: opened-state renders and their scores
+    rc = cfg.renders
+    test = list(cap.test)[: rc.max_views or None]
+    if not test or not model.parts:
+        run.skip("renders", "no test views" if not test else "no articulated part")
+        (out / "renders").mkdir()
+        write_json(out / "renders" / "index.json", {"renders": []})
+        return m
+    cams = cap.cameras(test)
+    stems = [cap.frames[i].stem for i in test]
+    bg = torch.tensor(rc.background, dtype=torch.float32)
+    rdir = out / "renders"
+    rdir.mkdir()
+    t0 = time.perf_counter()
+    opened: dict[str, tuple[float, list]] = {}
+    index = []
+    for p in model.parts:
+        part = by_id[p.id]
+        q = opened_q(part, rc.open_fraction)
+        views = render_opened(static, bodies, by_id, p.id, q, cams, rc.sh_degree, bg)
+        opened[p.id] = (q, views)
+        (rdir / p.id).mkdir()
+        for stem, v, i in zip(stems, views, test):
+            f = f"{p.id}/{stem}.png"
+            write_rgb(rdir / f, (v.rgb.numpy() * 255 + 0.5).astype(np.uint8))
+            index.append({"id": p.id, "q": q, "file_path": cap.frames[i].file_path, "image": f})
+    write_json(rdir / "index.json", {"renders": index})
+    m["render_s"] = round(time.perf_counter() - t0, 3)
+
+    closed = [v.rgb for v in render_opened(static, bodies, by_id, model.parts[0].id, 0.0, cams, rc.sh_degree, bg)]
+    real = [torch.from_numpy(cap.image(i).astype(np.float32) / 255.0) for i in test]
+    sc = _score(closed, real, None, rc.lpips)
+    m.update({f"closed_{k}": float(np.mean(v)) for k, v in sc.items()})
+    synth = scene.synth if scene is not None and scene.source == "synth" else None
+    if synth is None or not (cap.root / capture_name("gt_parts")).is_file():
+        run.skip("open_psnr", "no synthetic reference (the scene is not procedural or has no GT parts)")
+        return m
+    _opened_scores(m, cap, cams, parts, opened, synth, rc, rdir, run, render_cfg)
+    return m
+
+
+def _opened_scores(m: dict, cap: Capture, cams, parts, opened: dict, synth, rc, rdir: Path, run: StageRun,
+                   render_cfg: RenderConfig | None) -> None:
+    from drawer_lib.metrics.opened import SynthReference
+
+    gt = read_parts(cap.root / capture_name("gt_parts"))
+    match = match_parts(parts, gt)
+    pairs = {match.pred[i].id: match.gt[j] for i, j, _ in match.correct}
+    if not pairs:
+        run.skip("open_psnr", "no predicted part matches a GT part of its kind")
+        return
+    t0 = time.perf_counter()
+    ref = SynthReference(synth, cams, render_cfg)
+    rows, sheet = [], []
+    try:
+        for pid, (q, views) in opened.items():
+            g: Part | None = pairs.get(pid)
+            if g is None:
+                continue
+            qg = float(np.clip(q, *g.limits))
+            gv = ref.views(g.id, qg)
+            regions = [(v.part_alpha.numpy() > 0.5) | mask for v, (_, mask) in zip(views, gv)]
+            s = _score([v.rgb for v in views], [rgb for rgb, _ in gv], regions, rc.lpips)
+            rows.append({"id": pid, "gt": g.id, "q": q, "gt_q": qg, **{k: v for k, v in s.items()}})
+            best = int(np.argmax([r.sum() for r in regions]))
+            sheet.append(np.concatenate([_tile((gv[best][0].numpy() * 255).astype(np.uint8), rc.sheet_width),
+                                         _tile((views[best].rgb.numpy() * 255).astype(np.uint8), rc.sheet_width)], 1))
+    finally:
+        ref.close()
+    m["reference_s"] = round(time.perf_counter() - t0, 3)
+    for key in ("psnr", "ssim", "lpips"):
+        vals = [x for r in rows for x in r.get(key, [])]
+        if vals:
+            m[f"open_{key}"] = float(np.mean(vals))
+    reg = [x for r in rows for x in r["region_psnr"] if x is not None]
+    if reg:
+        m["open_region_psnr"] = float(np.mean(reg))
+    m["n_parts_scored_open"] = len(rows)
+    write_json(rdir / "scores.json", {"parts": rows})
+    if sheet:
+        Image.fromarray(np.concatenate(sheet, 0)).save(rdir / "contact_sheet.png")

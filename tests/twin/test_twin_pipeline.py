@@ -1,0 +1,115 @@
+"""The twin stage's library on the tiny analytic kitchen of tests/sim (a drawer in a carcass, a
+door, a flap, two cups): complete/ -> twin/ with MJCF (checked), URDF, USD, per-body Gaussians,
+opened-state renders and twin.json; bad bodies end in an error naming the part."""
+
+import json
+import math
+import shutil
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "sim"))
+from sim_fixtures import kitchen  # noqa: E402
+
+from drawer_lib.complete.io import write_complete  # noqa: E402
+from drawer_lib.errors import InputError  # noqa: E402
+from drawer_lib.io.capture import load_capture  # noqa: E402
+from drawer_lib.io.parts import Axis, Front, Part, PartsFile, write_parts  # noqa: E402
+from drawer_lib.runner import StageRun  # noqa: E402
+from drawer_lib.sim.model import PartBody, TwinModel  # noqa: E402
+from drawer_lib.twin.config import RendersConfig, TwinConfig  # noqa: E402
+from drawer_lib.twin.gaussians import concat, load_gaussian_ply  # noqa: E402
+from drawer_lib.twin.interior_gaussians import box_surface_gaussians  # noqa: E402
+from drawer_lib.twin.pipeline import run_twin  # noqa: E402
+
+
+def parts_of(model: TwinModel) -> PartsFile:
+    """parts.json entries for the fixture's bodies (fronts from each part's first collision box)."""
+    out = []
+    for b in model.parts:
+        s = max(b.collision, key=lambda s: np.prod(np.asarray(s.half)[[0, 2]]))
+        c = np.asarray(s.center) + np.array([0.0, -s.half[1], 0.0])
+        out.append(Part(b.id, b.kind, Axis(tuple(b.axis_origin), tuple(b.axis_direction)), tuple(b.limits),
+                        Front(tuple(c), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2 * s.half[0], 2 * s.half[2]))))
+    for r in model.rigid:
+        v = r.visual[0].vertices
+        lo, hi = v.min(0), v.max(0)
+        out.append(Part(r.id, "rigid", center=tuple((lo + hi) / 2), bounds=(tuple(lo), tuple(hi))))
+    return PartsFile(tuple(out))
+
+
+def gaussians_of(model: TwinModel) -> dict:
+    g = {"static": concat([box_surface_gaussians(s.center, s.rotation, s.half, np.array([0.6, 0.6, 0.6]), 0.05)
+                           for s in model.static_collision if s.kind == "box"])}
+    for k, b in enumerate(model.parts):
+        col = np.array([[0.9, 0.2, 0.2], [0.2, 0.9, 0.2], [0.2, 0.2, 0.9]])[k % 3]
+        g[b.id] = concat([box_surface_gaussians(s.center, s.rotation, s.half, col, 0.02) for s in b.collision])
+    return g
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory, exact_capture):
+    d = tmp_path_factory.mktemp("twin")
+    model = kitchen()
+    (d / "complete").mkdir()
+    gs = gaussians_of(model)
+    write_complete(d / "complete", model, gs, {}, {})
+    write_parts(d / "parts.json", parts_of(model))
+    cap = load_capture(exact_capture[0], check_files=False)
+    (d / "twin").mkdir()
+    cfg = TwinConfig(renders=RendersConfig(max_views=1, lpips=False))
+    m = run_twin(cfg, cap, d / "parts.json", d / "complete", StageRun("twin", d / "twin", d / "twin", 0))
+    return d, model, gs, m, cap
+
+
+def test_the_twin_folder_holds_every_export(built):
+    d, model, gs, m, _ = built
+    t = d / "twin"
+    mj = mujoco.MjModel.from_xml_path(str(t / "scene.xml"))
+    for b in model.parts:
+        j = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, b.id)
+        assert j >= 0 and mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_ACTUATOR, b.id) >= 0
+        np.testing.assert_allclose(mj.jnt_range[j], b.limits)
+    tj = json.loads((t / "twin.json").read_text())
+    assert tj["schema"] == "drawer.twin/1"
+    assert {p["id"] for p in tj["parts"]} == {b.id for b in model.bodies()}
+    for p in tj["parts"]:
+        assert p["joint"] == p["id"] and (p["actuator"] == p["id"]) == (p["kind"] != "rigid")
+    assert (t / "urdf" / "scene.urdf").is_file() and (t / "scene.usda").is_file() and (t / "visual.glb").is_file()
+    checks = json.loads((t / "checks.json").read_text())
+    assert checks and m["check_s"] > 0
+    # the per-body PLYs are the complete/ Gaussians, together as many as went in
+    n = sum(len(load_gaussian_ply(t / "gaussians" / f"{k}.ply").means) for k in gs)
+    assert n == m["n_gaussians"] == sum(len(g.means) for g in gs.values())
+
+
+def test_opened_renders_are_indexed_per_part_at_half_its_range(built):
+    d, model, gs, m, cap = built
+    idx = json.loads((d / "twin" / "renders" / "index.json").read_text())["renders"]
+    assert {r["id"] for r in idx} == {b.id for b in model.parts} and len(idx) == len(model.parts)
+    for r in idx:
+        assert (d / "twin" / "renders" / r["image"]).is_file()
+        part = next(b for b in model.parts if b.id == r["id"])
+        assert r["q"] == pytest.approx(0.5 * part.limits[1])
+    assert "closed_psnr" in m and "open_psnr" not in m  # no synthetic reference given: skipped
+
+
+def test_a_bad_part_is_an_error_naming_it(tmp_path, exact_capture):
+    model = kitchen()
+    bad = model.parts[1]
+    broken = PartBody(bad.id, bad.kind, bad.axis_origin, np.array([0.0, 0.0, 0.0]), bad.limits, bad.visual,
+                      bad.collision, bad.density)
+    model2 = TwinModel(model.static_visual, model.static_collision, [model.parts[0], broken, model.parts[2]], model.rigid)
+    (tmp_path / "complete").mkdir()
+    write_complete(tmp_path / "complete", model2, {}, {}, {})
+    write_parts(tmp_path / "parts.json", parts_of(model))
+    (tmp_path / "twin").mkdir()
+    cap = load_capture(exact_capture[0], check_files=False)
+    with pytest.raises(InputError, match=bad.id):
+        run_twin(TwinConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
+                 StageRun("twin", tmp_path / "twin", tmp_path / "twin", 0))
