@@ -24,7 +24,7 @@ from drawer_lib.twin.pipeline import run_twin
 def main(cfg: DictConfig) -> None:
     scene = scene_name(cfg)
     tc = to_typed(TwinConfig, cfg.twin, "twin")
-    sc = to_typed(SceneConfig, cfg.scene, f"conf/scene/{scene}.yaml:")
+    sc = to_typed(SceneConfig, cfg.scene, f"conf/scene/{scene}.yaml:", strict=False)
     render = to_typed(CaptureConfig, cfg.capture, "capture").render
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture, check_files=False)
