@@ -54,3 +54,27 @@ def test_misspelt_scene_key_is_named(tmp_path, exact_capture):
                         f"paths.out={tmp_path / 'out'}"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     _assert_named_error(r, "n_frame", "typo.yaml")
     assert not (tmp_path / "out" / "typo").exists()
+
+
+def _bad_parts(tmp_path, exact_capture, edit):
+    scene = tmp_path / "out" / "kitchen_tiny"
+    shutil.copytree(exact_capture[0], scene / "capture")
+    (scene / "articulate").mkdir()
+    parts = json.loads((scene / "capture" / "gt" / "parts.json").read_text())
+    edit(parts["parts"])
+    (scene / "articulate" / "parts.json").write_text(json.dumps(parts))
+    return scene
+
+
+def test_complete_and_twin_name_a_bad_part_and_write_nothing(tmp_path, exact_capture):
+    """A zero axis, a NaN front centre, an empty or negative range in parts.json: each an error
+    naming parts.json and the part's key, and no complete/ or twin/ folder."""
+    cases = {"axis.direction": lambda ps: ps[0]["axis"].update(direction=[0.0, 0.0, 0.0]),
+             "front.center": lambda ps: ps[1]["front"].update(center=[float("nan"), 0.0, 0.0]),
+             "limits": lambda ps: ps[2].update(limits=[0.5, 0.5])}
+    for k, (key, edit) in enumerate(cases.items()):
+        root = tmp_path / f"case{k}"
+        scene = _bad_parts(root, exact_capture, edit)
+        for stage in ("complete", "twin"):
+            _assert_named_error(run_stage(stage, root), "parts.json", key)
+            assert not (scene / stage).exists()

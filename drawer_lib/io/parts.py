@@ -198,8 +198,9 @@ def parse_parts(d: dict, source: str = "parts.json") -> PartsFile:
                 front = Front.from_json(p["front"], f"{what}.front")
             except (KeyError, TypeError) as e:
                 raise CaptureError(f"{what}: missing or malformed {e}") from e
-            if limits[0] > limits[1]:
-                raise CaptureError(f"{what}.limits: lower {limits[0]} exceeds upper {limits[1]}")
+            if limits[0] >= limits[1]:
+                raise CaptureError(f"{what}.limits: lower {limits[0]} must be below upper {limits[1]} (an empty "
+                                   "range cannot move)")
             parts.append(Part(pid, kind, axis, limits, front, inst, extra=extra))
         else:
             try:

@@ -34,7 +34,8 @@ def test_parts_round_trip(tmp_path, exact_capture):
 
 @pytest.mark.parametrize("bad,msg", [
     ({**DOOR, "kind": "screw"}, "kind 'screw'"),
-    ({**DOOR, "limits": [1.0, 0.0]}, "lower 1.0 exceeds upper"),
+    ({**DOOR, "limits": [1.0, 0.0]}, "lower 1.0 must be below upper"),
+    ({**DOOR, "limits": [0.5, 0.5]}, "an empty range"),
     ({**DOOR, "axis": {"origin": [0, 0, 0], "direction": [0, 0, 2]}}, "not a unit vector"),
     ({**DOOR, "axis": {"origin": [0, 0, float("nan")], "direction": [0, 0, 1]}}, "finite"),
     ({**DOOR, "front": {**DOOR["front"], "u": [0, -1, 0]}}, "not perpendicular"),
