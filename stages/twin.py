@@ -7,6 +7,7 @@ opened-state scores against the scene's own model.
     python -m stages.twin -cn dvc_stage scene=kitchen_small twin.renders.max_views=2
 """
 
+import drawer_lib.synth.gl  # noqa: F401, I001  (MuJoCo reads MUJOCO_GL once, at import: the reference renders offscreen)
 import hydra
 from omegaconf import DictConfig
 

@@ -246,9 +246,18 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
         front_rgb = _dc_colours(mine) if mine is not None and len(mine.means) else np.full((1, 3), 0.5)
         tex = interior_colours(it, front_rgb, None, cfg.interiors.texture)
         walls = [box_surface_gaussians(w.center, w.rotation, w.half, np.asarray(tex.base.get(name, np.mean(front_rgb, 0))),
-                                       gc.spacing, gc.opacity, degree)
+                                       gc.spacing, gc.opacity, degree, toward=np.asarray(it.free.center))
                  for w, name in zip(it.walls, it.wall_names)]
         if walls:
-            out[it.body] = concat([out[it.body]] + walls)
+            w = concat(walls)
+            # an interior is behind its closed front: keep what lies inside the front's rectangle
+            # (3 mm in from its edges) and behind its panel, so nothing shows through gaps or
+            # around the carcass while the part is closed
+            part = next(p for p in arts if p.id == pid)
+            f = part.front
+            rel = w.means.double().numpy() - np.asarray(f.center)
+            u, v, n = rel @ np.asarray(f.u), rel @ np.asarray(f.v), rel @ np.asarray(f.normal)
+            keep = (np.abs(u) < f.size[0] / 2 - 0.003) & (np.abs(v) < f.size[1] / 2 - 0.003) & (n < -cut_cfg.panel_thickness)
+            out[it.body] = concat([out[it.body], subset(w, torch.from_numpy(np.nonzero(keep)[0]))])
     del means
     return out

@@ -37,15 +37,17 @@ def box_faces(center: Float[np.ndarray, "3"], rotation: Float[np.ndarray, "3 3"]
 
 def box_surface_gaussians(center: Float[np.ndarray, "3"], rotation: Float[np.ndarray, "3 3"], half: Float[np.ndarray, "3"],
                           color: Float[np.ndarray, "3"], spacing: float = 0.02, opacity: float = 0.95, sh_degree: int = 3,
-                          shade=None) -> Gaussians:
+                          shade=None, toward: Float[np.ndarray, "3"] | None = None) -> Gaussians:
     """Flat Gaussians covering the faces of one oriented box (see the module docstring).
     ``color``: RGB in [0, 1]; ``shade(points [M, 3]) -> [M]`` an optional factor in [0, 1]
-    per Gaussian (e.g. darker deeper inside a cabinet)."""
+    per Gaussian (e.g. darker deeper inside a cabinet); ``toward``: cover only the faces whose
+    outward normal points toward this point (a wall's inner faces, seen from inside its cavity:
+    its outer faces lie in or outside the carcass, where they would show through)."""
     if not spacing > 0 or not np.all(np.isfinite(half)) or np.any(np.asarray(half) < 0):
         raise InputError(f"box_surface_gaussians: spacing {spacing} or half extents {half} not usable")
     means, quats, scales = [], [], []
     for c, n, ab, hab in box_faces(center, rotation, half):
-        if np.any(hab <= 0):
+        if np.any(hab <= 0) or (toward is not None and float(n @ (np.asarray(toward, np.float64) - c)) <= 0):
             continue
         nu, nv = (np.maximum(np.ceil(2 * hab / spacing), 1)).astype(int)
         su, sv = (np.arange(nu) + 0.5) / nu * 2 - 1, (np.arange(nv) + 0.5) / nv * 2 - 1

@@ -19,6 +19,7 @@ DESIGN §5b.
 7. ``twin.json``.
 """
 
+import drawer_lib.synth.gl  # noqa: F401, I001  (before mujoco: the opened-state reference renders offscreen)
 import shutil
 import time
 from pathlib import Path

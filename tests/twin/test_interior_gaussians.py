@@ -64,3 +64,9 @@ def test_a_covered_wall_renders_opaque_in_its_colour():
     mid = out.rgb[12:36, 12:36]
     assert out.alpha[12:36, 12:36].min() > 0.97
     torch.testing.assert_close(mid, torch.tensor([0.2, 0.6, 0.4]).expand_as(mid), atol=0.03, rtol=0)
+
+
+def test_toward_covers_only_the_faces_facing_the_point():
+    c, R, h = np.zeros(3), np.eye(3), np.array([0.2, 0.2, 0.01])  # a floor slab
+    g = box_surface_gaussians(c, R, h, np.ones(3), 0.05, toward=np.array([0.0, 0.0, 0.5]))  # seen from above
+    assert len(g.means) == 8 * 8 and torch.all(g.means[:, 2] > 0.0099)
