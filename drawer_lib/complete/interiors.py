@@ -46,6 +46,7 @@ from scipy.ndimage import gaussian_filter
 from scipy.optimize import minimize
 from scipy.spatial import ConvexHull, QhullError
 
+from drawer_lib.complete.cut import front_frame as cut_front_frame
 from drawer_lib.articulation.config import JointsConfig
 from drawer_lib.articulation.joints import carcass_depth
 from drawer_lib.complete.interiors_config import (
@@ -200,9 +201,7 @@ def check_part(part: Part) -> None:
 
 def front_frame(front: Front) -> tuple[np.ndarray, np.ndarray]:
     """(origin [3] = centre of the outer face, rotation [3, 3] = columns [u, v, normal], det +1)."""
-    u, n = np.asarray(front.u, np.float64), np.asarray(front.normal, np.float64)
-    v = np.cross(n, u)
-    return np.asarray(front.center, np.float64), np.stack([u, v, n], axis=1)
+    return np.asarray(front.center, np.float64), cut_front_frame(front)
 
 
 def _local_box(origin: np.ndarray, R: np.ndarray, lo, hi) -> OBox:

@@ -225,7 +225,6 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
         raise InputError(f"{model_dir}: binding.npz does not match gaussians.ply / anchor_mesh.ply")
     owner_face = body_owner(np.asarray(anchor.triangles_center), list(arts), cut_cfg)
     owner = owner_face[face]
-    means = g.means.numpy()
     names = [STATIC] + [p.id for p in arts]
     out = {name: subset(g, torch.from_numpy(np.nonzero(owner == k - 1)[0])) for k, name in enumerate(names)}
     for r in rigid:  # a rigid object's Gaussians: the static ones inside its solid's bounds
@@ -259,5 +258,4 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
             u, v, n = rel @ np.asarray(f.u), rel @ np.asarray(f.v), rel @ np.asarray(f.normal)
             keep = (np.abs(u) < f.size[0] / 2 - 0.003) & (np.abs(v) < f.size[1] / 2 - 0.003) & (n < -cut_cfg.panel_thickness)
             out[it.body] = concat([out[it.body], subset(w, torch.from_numpy(np.nonzero(keep)[0]))])
-    del means
     return out

@@ -18,6 +18,8 @@ from jaxtyping import Float
 from torch import Tensor
 
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.joints import joint_transform
+from drawer_lib.geometry.rotations import matrix_to_quat, quat_mul
 from drawer_lib.io.parts import Part
 from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.splat.render import Gaussians
@@ -49,34 +51,6 @@ def subset(g: Gaussians, idx: Tensor | np.ndarray) -> Gaussians:
 def concat(gs: list[Gaussians]) -> Gaussians:
     """One set of several (equal SH sizes)."""
     return Gaussians(*(torch.cat([getattr(g, k) for g in gs]) for k in ("means", "quats", "scales", "opacities", "sh")))
-
-
-def rotmat_to_quat(R: Float[np.ndarray, "3 3"]) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, w >= 0)."""
-    R = np.asarray(R, np.float64)
-    tr = np.trace(R)
-    cands = np.array([1 + tr, 1 + 2 * R[0, 0] - tr, 1 + 2 * R[1, 1] - tr, 1 + 2 * R[2, 2] - tr])
-    k = int(np.argmax(cands))
-    s = 2.0 * np.sqrt(max(cands[k], 1e-300))
-    if k == 0:
-        q = [s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    elif k == 1:
-        q = [(R[2, 1] - R[1, 2]) / s, s / 4, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s]
-    elif k == 2:
-        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, s / 4, (R[1, 2] + R[2, 1]) / s]
-    else:
-        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, s / 4]
-    q = np.asarray(q)
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
-
-
-def quat_mul(a: Float[Tensor, "... 4"], b: Float[Tensor, "... 4"]) -> Float[Tensor, "... 4"]:
-    """Hamilton product a * b of wxyz quaternions."""
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
-    return torch.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                        aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
 
 
 def _fibonacci_dirs(n: int) -> np.ndarray:
@@ -117,7 +91,7 @@ def transform(g: Gaussians, R: Float[np.ndarray, "3 3"], t: Float[np.ndarray, "3
     """The Gaussians moved rigidly by x -> R x + t (means, orientations, SH colour)."""
     Rt = torch.as_tensor(np.asarray(R), dtype=g.means.dtype)
     means = g.means @ Rt.T + torch.as_tensor(np.asarray(t), dtype=g.means.dtype)
-    qr = torch.as_tensor(rotmat_to_quat(R), dtype=g.quats.dtype)
+    qr = torch.as_tensor(matrix_to_quat(np.asarray(R, np.float64)), dtype=g.quats.dtype)
     quats = quat_mul(qr.expand_as(g.quats), g.quats)
     K = g.sh.shape[1]
     degree = int(round(np.sqrt(K))) - 1
@@ -129,19 +103,13 @@ def transform(g: Gaussians, R: Float[np.ndarray, "3 3"], t: Float[np.ndarray, "3
 
 
 def joint_motion(part: Part, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """(R [3, 3], t [3]) of the part's body at joint value ``q`` (rad or m): a rotation by q
-    about the axis line for a revolute part, a translation by q along it for a prismatic one
-    (DESIGN §5: positive q opens)."""
+    """(R [3, 3], t [3]) of the part's body at joint value ``q`` (rad or m)
+    (:func:`drawer_lib.geometry.joints.joint_transform`; DESIGN §5: positive q opens); an
+    unusable axis or q is an error naming the part."""
     if not part.articulated:
         raise InputError(f"part {part.id}: {part.kind} parts have no joint")
     a = np.asarray(part.axis.direction, np.float64)
-    n = np.linalg.norm(a)
-    if not np.isfinite(n) or n < 1e-9 or not np.isfinite(q):
+    if not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-9 or not np.isfinite(q):
         raise InputError(f"part {part.id}: axis direction {part.axis.direction} or q = {q} is not usable")
-    a = a / n
-    if part.kind == "prismatic":
-        return np.eye(3), a * q
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    R = np.eye(3) + np.sin(q) * K + (1 - np.cos(q)) * K @ K
-    o = np.asarray(part.axis.origin, np.float64)
-    return R, o - R @ o
+    T = joint_transform(part.kind, np.asarray(part.axis.origin, np.float64), a, q)
+    return T[:3, :3], T[:3, 3]

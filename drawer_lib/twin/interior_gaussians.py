@@ -16,7 +16,7 @@ from jaxtyping import Float
 from drawer_lib.errors import InputError
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import C0
-from drawer_lib.twin.gaussians import rotmat_to_quat
+from drawer_lib.geometry.rotations import matrix_to_quat
 
 THIN = 5e-4  # m, the Gaussians' extent along the face normal
 
@@ -55,7 +55,7 @@ def box_surface_gaussians(center: Float[np.ndarray, "3"], rotation: Float[np.nda
         p = c + uu.reshape(-1, 1) * ab[0] + vv.reshape(-1, 1) * ab[1]
         Rf = np.stack([ab[0], np.cross(n, ab[0]), n], 1)  # frame: x, y in the face, z = normal
         means.append(p)
-        quats.append(np.broadcast_to(rotmat_to_quat(Rf), (len(p), 4)))
+        quats.append(np.broadcast_to(matrix_to_quat(Rf), (len(p), 4)))
         scales.append(np.broadcast_to([0.6 * 2 * hab[0] / nu, 0.6 * 2 * hab[1] / nv, THIN], (len(p), 3)))
     K = (sh_degree + 1) ** 2
     if not means:

@@ -208,7 +208,7 @@ def _opened_scores(m: dict, cap: Capture, cams, parts, opened: dict, synth, rc, 
             gv = ref.views(g.id, qg)
             regions = [(v.part_alpha.numpy() > 0.5) | mask for v, (_, mask) in zip(views, gv)]
             s = _score([v.rgb for v in views], [rgb for rgb, _ in gv], regions, rc.lpips)
-            rows.append({"id": pid, "gt": g.id, "q": q, "gt_q": qg, **{k: v for k, v in s.items()}})
+            rows.append({"id": pid, "gt": g.id, "q": q, "gt_q": qg, **s})
             best = int(np.argmax([r.sum() for r in regions]))
             sheet.append(np.concatenate([_tile((gv[best][0].numpy() * 255).astype(np.uint8), rc.sheet_width),
                                          _tile((views[best].rgb.numpy() * 255).astype(np.uint8), rc.sheet_width)], 1))

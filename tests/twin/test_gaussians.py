@@ -9,7 +9,9 @@ from drawer_lib.io.parts import Axis, Front, Part
 from drawer_lib.splat.ply import write_gaussian_ply
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import sh_to_color
-from drawer_lib.twin.gaussians import joint_motion, load_gaussian_ply, quat_mul, rotmat_to_quat, sh_rotation, transform
+from drawer_lib.geometry.rotations import matrix_to_quat as rotmat_to_quat
+from drawer_lib.geometry.rotations import quat_mul
+from drawer_lib.twin.gaussians import joint_motion, load_gaussian_ply, sh_rotation, transform
 
 
 def random_rotation(rng):
@@ -65,7 +67,7 @@ def test_transform_moves_means_and_orientations():
         np.testing.assert_allclose(quat_to_rot(rotmat_to_quat(Q)), Q, atol=1e-12)
     np.testing.assert_allclose(rotmat_to_quat(np.diag([1.0, -1.0, -1.0])), [0, 1, 0, 0], atol=1e-12)  # 180 deg
     e = torch.tensor([1.0, 0, 0, 0], dtype=torch.float64)
-    torch.testing.assert_close(quat_mul(e, g.quats), g.quats)
+    torch.testing.assert_close(quat_mul(e.expand_as(g.quats), g.quats), g.quats)
 
 
 def test_ply_round_trip(tmp_path):

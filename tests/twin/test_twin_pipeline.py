@@ -86,6 +86,13 @@ def test_the_twin_folder_holds_every_export(built):
     # the per-body PLYs are the complete/ Gaussians, together as many as went in
     n = sum(len(load_gaussian_ply(t / "gaussians" / f"{k}.ply").means) for k in gs)
     assert n == m["n_gaussians"] == sum(len(g.means) for g in gs.values())
+    # a third-party PLY parser (trimesh's) reads the INRIA layout: positions and every 3DGS field
+    import trimesh
+
+    pc = trimesh.load(t / "gaussians" / "static.ply")
+    names = pc.metadata["_ply_raw"]["vertex"]["data"].dtype.names
+    assert {"f_dc_0", "opacity", "scale_0", "rot_0", "f_rest_44"} <= set(names)
+    np.testing.assert_allclose(pc.vertices, load_gaussian_ply(t / "gaussians" / "static.ply").means.numpy(), atol=1e-6)
 
 
 def test_opened_renders_are_indexed_per_part_at_half_its_range(built):
