@@ -194,14 +194,20 @@ class CompleteGeometryConfig:
 class GaussiansConfig:
     """The bodies' Gaussians: the appearance variant whose model they come from
     (``out/<scene>/appearance/<variant>/model``), and the flat Gaussians that cover the
-    interiors (``spacing`` m between them, ``opacity``)."""
+    interiors (``spacing`` m between them, ``opacity``). ``cull_visible``: an interior Gaussian
+    whose blend weight with every part closed exceeds this many pixels in any training view is
+    dropped: the capture saw the closed scene, so a visible interior contradicts it (a wall
+    poking out of the carcass, one drawn over a surface at a grazing angle); null keeps all."""
 
     variant: str = "movable_gs_ste"
     spacing: float = 0.02
     opacity: float = 0.95
+    cull_visible: float | None = 0.02
 
     def __post_init__(self):
         _check(self.spacing > 0 and 0 < self.opacity <= 1, "complete.gaussians: need spacing > 0, opacity in (0, 1]")
+        _check(self.cull_visible is None or self.cull_visible >= 0,
+               f"complete.gaussians.cull_visible = {self.cull_visible} must be >= 0 pixels or null")
 
 
 @dataclass(frozen=True)

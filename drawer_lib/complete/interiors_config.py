@@ -187,7 +187,17 @@ class TextureConfig:
 
 @dataclass(frozen=True)
 class InteriorsConfig:
+    """``method``: ``fitted`` (the templates fitted to the mesh's evidence) or ``drawer_rule``
+    (DRAWER's fixed boxes: depth 1.5 x a door's width, 1.25 x a drawer's, 2 cm walls; the
+    ablation). Both are always built and scored against GT; ``method`` picks the one the twin
+    gets."""
+
+    method: str = "fitted"
     template: TemplateConfig = field(default_factory=TemplateConfig)
     evidence: EvidenceConfig = field(default_factory=EvidenceConfig)
     fit: FitConfig = field(default_factory=FitConfig)
     texture: TextureConfig = field(default_factory=TextureConfig)
+
+    def __post_init__(self):
+        _check(self.method in ("fitted", "drawer_rule"),
+               f"complete.interiors.method = {self.method!r} must be fitted or drawer_rule")

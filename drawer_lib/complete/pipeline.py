@@ -16,7 +16,8 @@
    (inset by ``collision_clearance``), the handle's hull, a drawer's box walls;
 6. **Gaussians**: the appearance model's Gaussians go to the body whose front slab holds their
    anchor face (``static`` otherwise, or a rigid object's when inside its bounds), plus flat
-   Gaussians on the interiors' walls coloured from the cabinet;
+   Gaussians on the interiors' walls coloured from the cabinet, less those a training view
+   would see with every part closed (``gaussians.cull_visible``);
 7. on synthetic scenes, the interior depth error against the GT mesh, fitted and DRAWER's rule
    side by side, and the collision's fidelity.
 
@@ -25,6 +26,7 @@ cut; no rigid object: no solids; no appearance model: no Gaussians).
 """
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,9 +48,10 @@ from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, convex_pieces, mesh_shape
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import C0
-from drawer_lib.twin.gaussians import concat, load_gaussian_ply, subset
+from drawer_lib.twin.gaussians import blend_weights, concat, load_gaussian_ply, subset
 from drawer_lib.twin.interior_gaussians import box_surface_gaussians
 
 
@@ -99,12 +102,13 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     pts, pt_face = sample_points(mesh, np.arange(len(mesh.faces)), cfg.sample_per_m2, seed=run.seed)
     nrm = np.asarray(mesh.face_normals)[pt_face]
     floor_z = floor_height(pts, nrm)
-    interiors, rule = {}, {}
+    interiors, fitted, rule = {}, {}, {}
     inter_json: dict[str, dict] = {}
     if arts:
         res = build_interiors(arts, pts, nrm, cfg.interiors, floor_z)
-        interiors = {it.part_id: it for it in res.interiors}
+        fitted = {it.part_id: it for it in res.interiors}
         rule = {it.part_id: it for it in drawer_rule_interiors(arts, cfg.interiors, floor_z)}
+        interiors = rule if cfg.interiors.method == "drawer_rule" else fitted
         inter_json = {k: it.to_json() for k, it in interiors.items()}
         m["interior_templates"] = {t: sum(it.template == t for it in interiors.values())
                                    for t in sorted({it.template for it in interiors.values()})}
@@ -185,8 +189,14 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     t0 = time.perf_counter()
     gauss: dict[str, Gaussians] = {}
     if inp.appearance is not None and (inp.appearance / "gaussians.ply").is_file():
-        gauss = _body_gaussians(cfg, inp.appearance, arts, cut_cfg=cfg.cut, rigid=rigid_bodies, interiors=interiors)
+        gauss, interior = _body_gaussians(cfg, inp.appearance, arts, cut_cfg=cfg.cut, rigid=rigid_bodies,
+                                          interiors=interiors)
+        if cfg.gaussians.cull_visible is not None and any(v.any() for v in interior.values()):
+            gauss, n_cull = cull_visible_interiors(gauss, interior, cap.cameras(cap.train),
+                                                    cfg.gaussians.cull_visible, run.progress)
+            m["n_interior_gaussians_culled"] = n_cull
         m["n_gaussians"] = {k: int(len(v.means)) for k, v in gauss.items()}
+        m["n_interior_gaussians"] = int(sum(v.sum() for v in interior.values())) - m.get("n_interior_gaussians_culled", 0)
     else:
         run.skip("gaussians", f"no appearance model at {inp.appearance} (run appearance@<scene>-{cfg.gaussians.variant})")
     times["gaussians_s"] = time.perf_counter() - t0
@@ -198,7 +208,7 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
 
         inst = cap.root / capture_name("gt_mesh_instances")
         rows = interior_depth_error(parts, load_mesh(gt_mesh), read_parts(cap.root / capture_name("gt_parts")),
-                                    list(interiors.values()), list(rule.values()),
+                                    list(fitted.values()), list(rule.values()),
                                     np.load(inst) if inst.is_file() else None)
         s = summarise_depth_errors(rows)
         m.update({"interior_depth_error": s.get("fitted_mean"), "interior_depth_error_max": s.get("fitted_max"),
@@ -215,8 +225,33 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     return m
 
 
-def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, interiors) -> dict[str, Gaussians]:
-    """Split the appearance model's Gaussians by body and add the interiors' (module doc, 6)."""
+def cull_visible_interiors(gauss: dict[str, Gaussians], interior: dict[str, np.ndarray], cams: list[Camera],
+                           max_weight: float, progress: Callable = lambda it, **kw: it
+                           ) -> tuple[dict[str, Gaussians], int]:
+    """Drop the interior Gaussians (``interior[body]``: bool mask over ``gauss[body]``) whose
+    blend weight (:func:`~drawer_lib.twin.gaussians.blend_weights`, pixels) in the closed scene
+    (every body as given) exceeds ``max_weight`` in any of ``cams``. Returns the kept bodies and
+    the number dropped."""
+    names = list(gauss)
+    allg = concat([gauss[k] for k in names])
+    w = torch.zeros(len(allg.means), dtype=allg.means.dtype)
+    for cam in progress(cams, desc="interior visibility", total=len(cams)):
+        w = torch.maximum(w, blend_weights(allg, cam))
+    out, n, start = {}, 0, 0
+    for k in names:
+        g = gauss[k]
+        wk = w[start:start + len(g.means)].numpy()
+        start += len(g.means)
+        drop = interior.get(k, np.zeros(len(g.means), bool)) & (wk > max_weight)
+        n += int(drop.sum())
+        out[k] = subset(g, torch.from_numpy(np.nonzero(~drop)[0])) if drop.any() else g
+    return out, n
+
+
+def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, interiors
+                    ) -> tuple[dict[str, Gaussians], dict[str, np.ndarray]]:
+    """Split the appearance model's Gaussians by body and add the interiors' (module doc, 6).
+    Returns the bodies' Gaussians and, per body, which of them are interior ones."""
     g = load_gaussian_ply(model_dir / "gaussians.ply")
     binding = np.load(model_dir / "binding.npz")
     anchor = trimesh.load(model_dir / "anchor_mesh.ply", process=False, force="mesh")
@@ -240,6 +275,7 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
     k = g.sh.shape[1]
     degree = int(round(np.sqrt(k))) - 1
     gc = cfg.gaussians
+    interior = {k: np.zeros(len(v.means), bool) for k, v in out.items()}
     for pid, it in interiors.items():
         mine = out.get(pid)
         front_rgb = _dc_colours(mine) if mine is not None and len(mine.means) else np.full((1, 3), 0.5)
@@ -258,4 +294,5 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
             u, v, n = rel @ np.asarray(f.u), rel @ np.asarray(f.v), rel @ np.asarray(f.normal)
             keep = (np.abs(u) < f.size[0] / 2 - 0.003) & (np.abs(v) < f.size[1] / 2 - 0.003) & (n < -cut_cfg.panel_thickness)
             out[it.body] = concat([out[it.body], subset(w, torch.from_numpy(np.nonzero(keep)[0]))])
-    return out
+            interior[it.body] = np.concatenate([interior[it.body], np.ones(int(keep.sum()), bool)])
+    return out, interior

@@ -22,6 +22,9 @@ from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_mul
 from drawer_lib.io.parts import Part
 from drawer_lib.splat.ply import read_gaussian_ply
+from drawer_lib.geometry.camera import Camera
+from drawer_lib.splat.project import project_gaussians_fused
+from drawer_lib.splat.rasterize import composite
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import sh_to_color
 
@@ -51,6 +54,22 @@ def subset(g: Gaussians, idx: Tensor | np.ndarray) -> Gaussians:
 def concat(gs: list[Gaussians]) -> Gaussians:
     """One set of several (equal SH sizes)."""
     return Gaussians(*(torch.cat([getattr(g, k) for g in gs]) for k in ("means", "quats", "scales", "opacities", "sh")))
+
+
+def blend_weights(g: Gaussians, cam: Camera, near: float = 0.01, far: float = 1e10, eps2d: float = 0.3,
+                  tile: int = 16) -> Float[Tensor, "N"]:
+    """Each Gaussian's blend weight in view ``cam``, summed over the pixels: sum_p T_p,i alpha_p,i
+    (pixels; 0 for one fully hidden or outside the view), as :func:`drawer_lib.splat.render.render`
+    composites them (CPU backend). The image is linear in the colours, so this is the gradient of
+    the summed image with respect to each Gaussian's colour: one forward and one backward pass."""
+    viewmat = torch.as_tensor(cam.w2c, dtype=g.means.dtype)
+    with torch.no_grad():
+        p = project_gaussians_fused(g.means, g.quats, g.scales, viewmat, cam.intrinsics, near, far, eps2d)
+    colors = torch.zeros((len(g.means), 3), dtype=g.means.dtype, requires_grad=True)
+    c = composite(p.means2d.detach(), p.conics.detach(), g.opacities.detach(), colors, p.depths.detach(), p.radii,
+                  cam.intrinsics.width, cam.intrinsics.height, tile, torch.zeros(p.means2d.shape, dtype=g.means.dtype))
+    c.rgb[..., 0].sum().backward()
+    return colors.grad[:, 0].detach()
 
 
 def _fibonacci_dirs(n: int) -> np.ndarray:
