@@ -496,8 +496,24 @@ def _projected_overlap(fi: Front, fj: Front) -> tuple[float, float, float]:
     return float(ou), float(ov), float(frac)
 
 
+def _swept_front(p: Part, in_plane_cos: float = 0.5) -> Front:
+    """The rectangle a sliding panel covers over its range (its front extended along its axis
+    when the axis lies in the front's plane); any other part's front as it is."""
+    f = p.front
+    d = np.asarray(p.axis.direction, np.float64) if p.axis is not None else None
+    if p.kind != "prismatic" or d is None or abs(d @ np.asarray(f.normal)) >= in_plane_cos or p.limits is None:
+        return f
+    lo, hi = p.limits
+    travel = hi - lo
+    du, dv = abs(float(d @ np.asarray(f.u))), abs(float(d @ np.asarray(f.v)))
+    c = np.asarray(f.center) + d * (lo + hi) / 2
+    return Front(tuple(c.tolist()), f.normal, f.u, (f.size[0] + du * travel, f.size[1] + dv * travel))
+
+
 def _neighbours(parts: Sequence[Part], cfg: EvidenceConfig, t_front: float, min_step: float = 0.008):
-    """Per part: (start, track ids, blocking distance, blocking id) from the other fronts."""
+    """Per part: (start, track ids, blocking distance, blocking id) from the other fronts. A
+    sliding panel counts as a track of the fronts its swept rectangle (:func:`_swept_front`)
+    overlaps: the panels of a sliding pair abut at q = 0 and pass each other when opened."""
     out = []
     for i, pi in enumerate(parts):
         fi = pi.front
@@ -511,11 +527,12 @@ def _neighbours(parts: Sequence[Part], cfg: EvidenceConfig, t_front: float, min_
             if delta <= min_step:
                 continue
             ou, ov, frac = _projected_overlap(fi, fj)
-            if ou <= 0 or ov <= 0:
-                continue
-            if delta < cfg.track_gap:
+            su, sv, _ = _projected_overlap(fi, _swept_front(pj))
+            if delta < cfg.track_gap and su > 0 and sv > 0:
                 start = max(start, delta + t_front)
                 tracks.append(pj.id)
+            elif ou <= 0 or ov <= 0:
+                continue
             elif frac >= cfg.blocking_overlap and (block is None or delta < block):
                 block, block_id = delta, pj.id
         out.append((start, tracks, block, block_id))

@@ -231,12 +231,14 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     ranges); every drive opens its part to 95 % of its upper limit within 3 s (or 1.2 x range /
     drive speed when a long travel needs more) and passes the limit by <= 1° / 1 mm; a person's pull (20 N / 10 N·m as an applied generalised force,
     actuation disabled) opens it to 90 % of its range within 3 s and the limit holds (<= 2° /
-    5 mm); at q = 0 no part penetrates the static scene or another part by > 2 mm, nor the static
-    scene along its path; rigid objects move < 1 cm in 2 s at rest; no NaN and no MuJoCo warning
+    5 mm); at q = 0 no part penetrates the static scene by > 2 mm (nor another part, when parts
+    collide: ``contact.part_part``; else that overlap is only reported), nor the static scene
+    along its path; rigid objects move < 1 cm in 2 s at rest; no NaN and no MuJoCo warning
     anywhere. Simulation speed (steps/s, real-time factor) of the whole scene at rest is measured.
 
     Returns: a dict of flat aggregates (``n_parts``, ``n_rigid``, ``drive_time_to_open_s_max``,
-    ``pull_time_to_open_s_max``, ``penetration_max_m``, ``path_penetration_max_m``,
+    ``pull_time_to_open_s_max``, ``penetration_max_m`` (static scene), ``penetration_parts_max_m``,
+    ``path_penetration_max_m``,
     ``rigid_drift_max_m``, ``sim_steps_per_s``, ``sim_realtime_factor``, ``check_wall_s``) plus
     ``parts: {id: {...}}`` and ``rigid: {id: {...}}`` with the per-body numbers (SI units).
     Raises: ``TwinCheckError`` / ``NonFiniteError`` naming every failing part.
@@ -268,17 +270,20 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
         if p.id not in ids:
             continue
         me = names.index(p.id)
-        hit = ((a == me) & (b < n_static_parts)) | ((b == me) & (a < n_static_parts))
-        k = int(np.argmax(np.where(hit, depth, -1.0))) if hit.any() else -1
-        pen = float(depth[k]) if k >= 0 else 0.0
-        other = names[b[k] if a[k] == me else a[k]] if k >= 0 else None
         rec = _check_part(m, m_pull, mc, p, ids[p.id], owner, names, cfg, fails)
-        rec.update(penetration_m=pen, penetration_with=other)
+        for key, others in (("penetration", (0, 1)), ("penetration_parts", (1, n_static_parts))):
+            inr = lambda o: (o >= others[0]) & (o < others[1])  # noqa: E731
+            hit = ((a == me) & inr(b)) | ((b == me) & inr(a))
+            k = int(np.argmax(np.where(hit, depth, -1.0))) if hit.any() else -1
+            pen = float(depth[k]) if k >= 0 else 0.0
+            other = names[b[k] if a[k] == me else a[k]] if k >= 0 else None
+            rec.update({f"{key}_m": pen, f"{key}_with": other})
+            # parts overlapping parts matter only when they collide (contact.part_part); else reported
+            if pen > c.penetration and (key == "penetration" or cfg.contact.part_part):
+                fails.add(p.id, key, f"part {p.id!r}: at q = 0 it penetrates "
+                          f"{'the static scene' if other == STATIC else repr(other)} by {pen * 1000:.1f} mm "
+                          f"(max {c.penetration * 1000:.1f} mm)")
         report["parts"][p.id] = rec
-        if pen > c.penetration:
-            fails.add(p.id, "penetration", f"part {p.id!r}: at q = 0 it penetrates "
-                      f"{'the static scene' if other == STATIC else repr(other)} by {pen * 1000:.1f} mm "
-                      f"(max {c.penetration * 1000:.1f} mm)")
 
     # the whole scene at rest: rigid objects stay, nothing diverges; simulation speed
     d = mujoco.MjData(m)
@@ -308,7 +313,8 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
 
     report.update(
         drive_time_to_open_s_max=_max("drive_time_to_open_s"), pull_time_to_open_s_max=_max("pull_time_to_open_s"),
-        penetration_max_m=_max("penetration_m"), path_penetration_max_m=_max("path_penetration_m"),
+        penetration_max_m=_max("penetration_m"), penetration_parts_max_m=_max("penetration_parts_m"),
+        path_penetration_max_m=_max("path_penetration_m"),
         rigid_drift_max_m=float(drift.max()) if len(drift) else None,
         sim_steps_per_s=n / wall if wall > 0 else None,
         sim_realtime_factor=n * m.opt.timestep / wall if wall > 0 else None,

@@ -30,6 +30,7 @@ Decisions:
 """
 
 
+import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -143,6 +144,8 @@ def build_spec(model: TwinModel, cfg: SimConfig | None = None) -> mujoco.MjSpec:
         jc = cfg.joint(p.kind)
         body = spec.worldbody.add_body(name=p.id, pos=origin.tolist())
         _set_inertial(body, props, origin)
+        if p.kind == "revolute" and abs(p.unit_axis[2]) < math.sqrt(0.5):  # a flap: its lift / spring
+            body.gravcomp = cfg.flap_gravcomp
         body.add_joint(name=p.id, type=mujoco.mjtJoint.mjJNT_HINGE if p.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE,
                        pos=[0.0, 0.0, 0.0], axis=p.unit_axis.tolist(), range=list(p.limits),
                        limited=mujoco.mjtLimited.mjLIMITED_TRUE, damping=jc.damping, armature=jc.armature,

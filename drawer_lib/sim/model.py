@@ -527,11 +527,16 @@ class SimConfig:
     """Simulation of the twin (MuJoCo option and the joints, drives, densities, contacts and
     checks). ``timestep`` (s), ``integrator`` one of MuJoCo's (implicitfast integrates the
     velocity servos and joint damping implicitly, stable for any gain), ``gravity`` (m/s^2, along
-    -z)."""
+    -z). ``flap_gravcomp``: the fraction of a flap's weight (a part hinged about an axis more
+    than 45° from vertical) its mechanism carries (MuJoCo body ``gravcomp``): up-opening flaps
+    ride on gas struts or lift fittings and down-opening ones on balancing springs, so a hand
+    moves them as it moves a door; 0 leaves the bare panel (a tall lift-up flap then needs more
+    than the 10 N·m pull to open)."""
 
     timestep: float = 0.002
     integrator: str = "implicitfast"
     gravity: float = 9.81
+    flap_gravcomp: float = 1.0
     revolute: JointConfig = field(default_factory=_revolute_default)
     prismatic: JointConfig = field(default_factory=_prismatic_default)
     densities: DensityConfig = field(default_factory=DensityConfig)
@@ -543,6 +548,7 @@ class SimConfig:
         _check(self.integrator in ("euler", "implicit", "implicitfast", "rk4"),
                f"sim.integrator = {self.integrator!r} must be euler, implicit, implicitfast or rk4")
         _check(math.isfinite(self.gravity) and self.gravity >= 0, "sim.gravity must be finite and >= 0")
+        _check(0.0 <= self.flap_gravcomp <= 1.0, f"sim.flap_gravcomp = {self.flap_gravcomp} must be in [0, 1]")
         _check(self.contact.limit_timeconst >= 2 * self.timestep,
                f"sim.contact.limit_timeconst = {self.contact.limit_timeconst} must be >= 2 x timestep "
                f"({2 * self.timestep}) to stay stable")

@@ -257,6 +257,22 @@ def test_template_kinds_and_tracks():
     assert abs(a.start + a.depth - (D + TF)) < 0.01 and abs(b.start + b.depth - (D + TF + 0.025)) < 0.01
 
 
+def test_abutting_sliding_pair_still_shares_tracks():
+    """Panels that meet edge to edge at q = 0 (no overlap) pass each other when opened: the
+    outer one's interior still starts behind the inner one's track (its swept rectangle)."""
+    inner = Part("in", "prismatic", Axis((0.75, Y, 0.45), (-1.0, 0.0, 0.0)), (0.0, 0.45), _front(0.5, 1.0, 0.1, 0.8))
+    outer = Part("out", "prismatic", Axis((0.25, Y - 0.025, 0.45), (1.0, 0.0, 0.0)), (0.0, 0.45),
+                 _front(0.0, 0.5, 0.1, 0.8, y=Y - 0.025))
+    res = build_interiors([inner, outer], *cabinet_points(), CFG)
+    ev = {e.part_id: e for e in res.evidence}
+    assert ev["out"].tracks == ["in"] and ev["out"].start == pytest.approx(0.025 + TF)
+    assert ev["in"].tracks == [] and ev["in"].start == pytest.approx(TF)
+    # a drawer beside a panel is not a track: only in-plane slides sweep across their neighbours
+    d = drawer("d", 0.5, 1.0, 0.1, 0.8, y=Y + 0.025)
+    ev = {e.part_id: e for e in build_interiors([d, outer], *cabinet_points(), CFG).evidence}
+    assert ev["out"].tracks == []
+
+
 def test_evidence_from_caps_when_the_wall_is_hidden():
     """A tall unit: no wall visible above it, but its end panel shows its depth."""
     part = door("tall", 0.0015, 0.5985, 0.1, 2.1)

@@ -124,12 +124,20 @@ def test_part_placed_inside_the_static_scene_fails_the_penetration_check():
     assert "part 'drawer_0': at q = 0 it penetrates the static scene by 10.0 mm" in str(e.value)
 
 
-def test_overlapping_parts_fail_the_penetration_check():
+def test_overlapping_parts_fail_the_penetration_check_when_parts_collide():
+    """Two drawers in one place: with part-part contacts on, a failure naming both; off (the
+    conf/twin default: neighbours' reconstructed fronts abut), the overlap is reported only."""
     walls, a = F.drawer_cabinet()
     b = dataclasses.replace(a, id="drawer_1", collision=[c.shifted(np.array([0.0, 0.0, 0.005])) for c in a.collision])
     twin = TwinModel(static_collision=walls, parts=[a, b])
-    with pytest.raises(TwinCheckError, match="penetrates 'drawer_1'"):
-        check_twin(compile_spec(build_spec(twin)), twin)
+    cfg = SimConfig(contact=ContactConfig(part_part=True))
+    with pytest.raises(TwinCheckError, match="penetrates 'drawer_1'") as e:
+        check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
+    assert {("drawer_0", "penetration_parts"), ("drawer_1", "penetration_parts")} <= _failures(e)
+    cfg = SimConfig(contact=ContactConfig(part_part=False))
+    r = check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
+    assert r["penetration_parts_max_m"] > 0.01 and r["parts"]["drawer_0"]["penetration_parts_with"] == "drawer_1"
+    assert r["penetration_max_m"] <= 0.002
 
 
 def test_a_floating_cup_fails_the_rest_check():
@@ -190,3 +198,34 @@ def test_tiny_part_drives_stably():
     mujoco.mj_step(m, d, nstep=500)
     assert d.qpos[ix["qpos"]] == pytest.approx(0.025, abs=1e-3)
     assert (np.asarray(d.warning.number) == 0).all() and np.isfinite(d.qacc).all()
+
+
+def _lift_up_flap(width: float = 0.6, height: float = 0.85):
+    """A tall wall-cabinet flap hinged at its top edge, opening up (outward) by up to 100°:
+    a 0.6 x 0.85 m x 18 mm panel of 5.5 kg whose weight acts 0.43 m from the hinge (up to
+    23 N·m, more than the 10 N·m pull)."""
+    x0, x1, z0, z1 = -width / 2, width / 2, 1.4, 1.4 + height
+    walls = F.carcass(x0, x1, z0, z1, 0.35)
+    panel = F.slab((x0 + 0.0015, -F.GAP - F.T, z0 + 0.0015), (x1 - 0.0015, -F.GAP, z1 - F.GAP))
+    part = F.PartBody(id="flap_0", kind="revolute", axis_origin=np.array([0.0, -F.GAP, z1 - F.GAP]),
+                      axis_direction=np.array([-1.0, 0.0, 0.0]), limits=(0.0, math.radians(100)),
+                      visual=F.as_visual([panel]), collision=[panel], density=F.DENSITY)
+    return TwinModel(static_collision=walls, parts=[part])
+
+
+def test_a_lift_up_flap_needs_its_lift_mechanism():
+    """The bare panel's weight beats the 10 N·m pull (the failure names it); with the lift's
+    gravity compensation (the default) the pull opens it and its limit holds it; a door (a
+    vertical hinge) gets none."""
+    twin = _lift_up_flap()
+    bare = SimConfig(flap_gravcomp=0.0)
+    with pytest.raises(TwinCheckError, match="part 'flap_0': pulled with 10 N·m it opened only") as e:
+        check_twin(compile_spec(build_spec(twin, bare)), twin, bare)
+    assert ("flap_0", "pull") in _failures(e)
+    m = compile_spec(build_spec(twin))
+    assert m.body_gravcomp[part_index(m, "flap_0")["body"]] == 1.0
+    r = check_twin(m, twin)
+    assert r["parts"]["flap_0"]["pull_time_to_open_s"] < 3.0
+    door = F.single(F.door_cabinet)
+    md = compile_spec(build_spec(door))
+    assert md.body_gravcomp[part_index(md, "door_0")["body"]] == 0.0
