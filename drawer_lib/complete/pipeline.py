@@ -68,11 +68,17 @@ def _mesh(m: trimesh.Trimesh) -> list[Shape]:
     return [mesh_shape(np.asarray(m.vertices), np.asarray(m.faces))] if len(m.faces) else []
 
 
-def _handle_hull(body: trimesh.Trimesh, part, min_proud: float = 0.005) -> list[Shape]:
-    """The convex hull of the body's vertices standing ``min_proud`` in front of the front (a
-    handle), or nothing when fewer than 8 do."""
+def _handle_hull(body: trimesh.Trimesh, part, max_proud: float, min_proud: float = 0.005) -> list[Shape]:
+    """The convex hull of the body's vertices standing ``min_proud`` to ``max_proud`` in front
+    of the front and inside its rectangle (a handle), or nothing when fewer than 8 do. (The body
+    also holds faces of the slab's margin: a neighbour's edge, the counter's lip; a handle never
+    reaches past its own front.)"""
     v = np.asarray(body.vertices)
-    proud = (v - np.asarray(part.front.center)) @ np.asarray(part.front.normal) > min_proud
+    f = part.front
+    rel = v - np.asarray(f.center)
+    n = rel @ np.asarray(f.normal)
+    inside = (np.abs(rel @ np.asarray(f.u)) <= f.size[0] / 2) & (np.abs(rel @ np.asarray(f.v)) <= f.size[1] / 2)
+    proud = inside & (n > min_proud) & (n <= max_proud)
     if proud.sum() < 8:
         return []
     try:
@@ -179,7 +185,7 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
         # behind the outer face, one panel thick, inset by the clearance: reconstructed fronts
         # abut (shared edges) and must not touch their neighbours at q = 0
         panel = front_box(p.front, -cfg.cut.panel_thickness, 0.0, cfg.collision_clearance)
-        collision = [box_shape(panel.center, panel.half, panel.rotation)] + _handle_hull(pc.body, p) + moving_walls
+        collision = [box_shape(panel.center, panel.half, panel.rotation)] + _handle_hull(pc.body, p, cfg.cut.protrusion) + moving_walls
         bodies.append(PartBody(p.id, p.kind, np.asarray(p.axis.origin), np.asarray(p.axis.direction), p.limits,
                                _mesh(pc.body) + moving_walls, collision, density_part))
 
