@@ -54,6 +54,7 @@ from drawer_lib.twin.pipeline import run_twin  # noqa: E402
 
 MODE = "generic"
 TWIN_KEYS = ("closed_psnr", "closed_ssim", "closed_lpips", "open_psnr", "open_ssim", "open_lpips", "open_region_psnr",
+             "sim_penetration_parts_max_m",
              "n_parts_scored_open", "sim_penetration_max_m", "sim_path_penetration_max_m", "sim_rigid_drift_max_m",
              "sim_sim_steps_per_s", "sim_sim_realtime_factor", "sim_drive_time_to_open_s_max",
              "sim_pull_time_to_open_s_max", "n_static_collision", "n_part_collision", "n_gaussians", "wall_s")
