@@ -40,6 +40,7 @@ LAYOUT = {
     "articulate": {"dir": "articulate", "parts": "articulate/parts.json", "decisions": "articulate/decisions.json"},
     "evaluate": {"dir": "evaluate", "matches": "evaluate/matches.json"},
     "complete": {"dir": "complete", "index": "complete/complete.json"},
+    "simulate": {"dir": "simulate", "tracks": "simulate/tracks.npz", "motion": "simulate/motion.json"},
     "twin": {"dir": "twin", "mjcf": "twin/scene.xml", "urdf": "twin/urdf/scene.urdf", "usd": "twin/scene.usda",
              "index": "twin/twin.json", "gaussians": "twin/gaussians", "renders": "twin/renders"},
     "appearance": {"dir": "appearance", "model": "model", "renders": "renders"},  # inside appearance/<variant>/

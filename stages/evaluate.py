@@ -1,6 +1,6 @@
 """DVC stage ``evaluate@<scene>``: predictions vs the capture's ground truth -> ``out/<scene>/evaluate/``
-(``metrics.json``: articulation precision, recall, EA-score (DESIGN §6); ``matches.json``: which
-prediction matched which GT part). Scenes without GT record the skip and its reason.
+(``metrics.json``: articulation precision, recall, EA-score and the motion EMD of the simulated
+twin (DESIGN §6); ``matches.json``: which prediction matched which GT part, per-part EMD). Scenes without GT record the skip and its reason.
 
     python -m stages.evaluate -cn dvc_stage scene=kitchen_small
 """
@@ -21,7 +21,8 @@ def main(cfg: DictConfig) -> None:
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture, check_files=False)
     with stage_run("evaluate", dst.stage_dir("evaluate"), seed=cfg.seed) as run:
-        run.metrics.update(run_evaluate(cap, src.parts, run))
+        tracks = src.file("simulate", "tracks")  # absent in a run without the twin: the EMD is skipped
+        run.metrics.update(run_evaluate(cap, src.parts, run, tracks if tracks.is_file() else None))
 
 
 if __name__ == "__main__":

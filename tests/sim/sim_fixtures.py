@@ -11,6 +11,7 @@ import math
 import numpy as np
 import trimesh
 
+from drawer_lib.io.parts import Axis, Front, Part, PartsFile
 from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
 
 T = 0.018  # carcass and front panel thickness
@@ -112,3 +113,18 @@ def single(part_fn, **kw) -> TwinModel:
     walls, part = part_fn(**kw)
     static = [floor(), *walls]
     return TwinModel(static_visual=as_visual(static), static_collision=static, parts=[part])
+
+
+def parts_of(model: TwinModel) -> PartsFile:
+    """parts.json entries for the fixture's bodies (fronts from each part's first collision box)."""
+    out = []
+    for b in model.parts:
+        s = max(b.collision, key=lambda s: np.prod(np.asarray(s.half)[[0, 2]]))
+        c = np.asarray(s.center) + np.array([0.0, -s.half[1], 0.0])
+        out.append(Part(b.id, b.kind, Axis(tuple(b.axis_origin), tuple(b.axis_direction)), tuple(b.limits),
+                        Front(tuple(c), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2 * s.half[0], 2 * s.half[2]))))
+    for r in model.rigid:
+        v = r.visual[0].vertices
+        lo, hi = v.min(0), v.max(0)
+        out.append(Part(r.id, "rigid", center=tuple((lo + hi) / 2), bounds=(tuple(lo), tuple(hi))))
+    return PartsFile(tuple(out))

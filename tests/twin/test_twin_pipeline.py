@@ -14,33 +14,18 @@ import pytest
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "sim"))
-from sim_fixtures import kitchen  # noqa: E402
+from sim_fixtures import kitchen, parts_of  # noqa: E402
 
 from drawer_lib.complete.io import write_complete  # noqa: E402
 from drawer_lib.errors import InputError  # noqa: E402
 from drawer_lib.io.capture import load_capture  # noqa: E402
-from drawer_lib.io.parts import Axis, Front, Part, PartsFile, write_parts  # noqa: E402
+from drawer_lib.io.parts import write_parts  # noqa: E402
 from drawer_lib.runner import StageRun  # noqa: E402
 from drawer_lib.sim.model import PartBody, TwinModel  # noqa: E402
 from drawer_lib.twin.config import RendersConfig, TwinConfig  # noqa: E402
 from drawer_lib.twin.gaussians import concat, load_gaussian_ply  # noqa: E402
 from drawer_lib.twin.interior_gaussians import box_surface_gaussians  # noqa: E402
 from drawer_lib.twin.pipeline import run_twin  # noqa: E402
-
-
-def parts_of(model: TwinModel) -> PartsFile:
-    """parts.json entries for the fixture's bodies (fronts from each part's first collision box)."""
-    out = []
-    for b in model.parts:
-        s = max(b.collision, key=lambda s: np.prod(np.asarray(s.half)[[0, 2]]))
-        c = np.asarray(s.center) + np.array([0.0, -s.half[1], 0.0])
-        out.append(Part(b.id, b.kind, Axis(tuple(b.axis_origin), tuple(b.axis_direction)), tuple(b.limits),
-                        Front(tuple(c), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2 * s.half[0], 2 * s.half[2]))))
-    for r in model.rigid:
-        v = r.visual[0].vertices
-        lo, hi = v.min(0), v.max(0)
-        out.append(Part(r.id, "rigid", center=tuple((lo + hi) / 2), bounds=(tuple(lo), tuple(hi))))
-    return PartsFile(tuple(out))
 
 
 def gaussians_of(model: TwinModel) -> dict:

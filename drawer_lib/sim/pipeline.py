@@ -1,0 +1,95 @@
+"""What the ``simulate`` stage does: ``twin/scene.xml`` + ``parts.json`` -> ``simulate/``.
+
+Every articulated part is driven open through its velocity actuator (DRAWER's 50°/s and
+0.5 m/s), one at a time from the rest state, with the integrator and timestep of the twin's
+model; the ``grid`` x ``grid`` points of its front are recorded when its joint first reaches
+each of ``samples`` values spread evenly over its range (``tracks.npz``: per part ``<id>/q``
+[K], ``<id>/time`` [K] s, ``<id>/points`` [K, P, 3] m, world; a value never reached keeps the
+last pose reached, and ``<id>/reached`` [K] says which were). ``evaluate`` compares them with
+the GT (motion EMD). ``metrics.json``: how far the simulation strays from the part's own
+kinematics (``kinematic_dev_max_m``: the largest distance between a simulated point and where
+the joint puts it at the same q; ~0 unless the physics fights the joint), the parts that did
+not reach their upper limit, the simulated and wall time.
+"""
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from drawer_lib.errors import ConfigError, InputError
+from drawer_lib.io.images import write_json
+from drawer_lib.io.parts import read_parts
+from drawer_lib.metrics.motion import front_grid, kinematic_tracks
+from drawer_lib.runner import StageRun
+from drawer_lib.sim.simulate import drive_open
+
+
+@dataclass(frozen=True)
+class SimulateConfig:
+    """``grid``: n x n points per front; ``samples``: joint values recorded per part;
+    ``max_time``: simulated seconds per part (None: 2 x range / drive speed + 1 s)."""
+
+    grid: int = 8
+    samples: int = 200
+    max_time: float | None = None
+
+    def __post_init__(self):
+        if not (1 <= self.grid <= 64 and 2 <= self.samples <= 100_000):
+            raise ConfigError(f"simulate: need 1 <= grid <= 64 and 2 <= samples, got {self.grid}, {self.samples}")
+        if self.max_time is not None and not self.max_time > 0:
+            raise ConfigError(f"simulate.max_time = {self.max_time} must be > 0 s or null")
+
+
+def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: StageRun) -> dict:
+    """Drive every articulated part open (module doc); write ``tracks.npz`` and ``motion.json``."""
+    xml = twin_dir / "scene.xml"
+    if not xml.is_file():
+        raise InputError(f"{xml}: missing (run the twin stage first)")
+    if not parts_path.is_file():
+        raise InputError(f"{parts_path}: missing (run the articulate stage first)")
+    try:
+        m = mujoco.MjModel.from_xml_path(str(xml))
+    except ValueError as e:
+        raise InputError(f"{xml}: MuJoCo cannot load it ({e})") from e
+    parts = [p for p in read_parts(parts_path).parts if p.articulated]
+    out: dict = {"n_parts": len(parts), "timestep": float(m.opt.timestep),
+                 "integrator": mujoco.mjtIntegrator(int(m.opt.integrator)).name.removeprefix("mjINT_").lower()}
+    arrays: dict[str, np.ndarray] = {}
+    per: dict[str, dict] = {}
+    if not parts:
+        run.skip("tracks", "no articulated part")
+    t0 = time.perf_counter()
+    sim_s = 0.0
+    for p in run.progress(parts, desc="drive", total=len(parts)):
+        lo, hi = p.limits
+        targets = np.linspace(lo, hi, cfg.samples + 1)[1:]  # q = lo is the rest pose: not a sample
+        pts = front_grid(p.front, cfg.grid)
+        tr = drive_open(m, p.id, pts, targets, cfg.max_time)  # the model's rest pose is q = 0
+        reached = tr.reached
+        last = int(np.flatnonzero(reached)[-1]) if reached.any() else -1
+        points = tr.points.copy()
+        points[~reached] = points[last] if last >= 0 else pts  # stuck: the last pose reached
+        q = np.where(reached, tr.q, targets)
+        kin = kinematic_tracks(p, pts, q[reached]) if reached.any() else np.zeros((0, len(pts), 3))
+        dev = float(np.linalg.norm(points[reached] - kin, axis=-1).max()) if reached.any() else float("nan")
+        arrays |= {f"{p.id}/q": q, f"{p.id}/time": tr.time, f"{p.id}/points": points, f"{p.id}/reached": reached,
+                   f"{p.id}/front_points": pts}
+        t_open = float(tr.time[last]) if last >= 0 else None
+        per[p.id] = {"kind": p.kind, "upper": hi, "reached_fraction": float(reached.mean()),
+                     "time_to_upper_s": t_open if reached.all() else None, "kinematic_dev_m": dev,
+                     "steps": tr.steps, "problem": tr.problem}
+        sim_s += tr.steps * m.opt.timestep
+    wall = time.perf_counter() - t0
+    np.savez_compressed(run.dir / "tracks.npz", **arrays)
+    write_json(run.dir / "motion.json", {"parts": per})
+    if parts:
+        devs = [v["kinematic_dev_m"] for v in per.values() if np.isfinite(v["kinematic_dev_m"])]
+        out.update(kinematic_dev_max_m=max(devs) if devs else None,
+                   n_parts_not_opened=sum(v["reached_fraction"] < 1 for v in per.values()),
+                   n_sim_warnings=sum(v["problem"] is not None for v in per.values()),
+                   sim_time_s=round(sim_s, 4), drive_wall_s=round(wall, 4),
+                   realtime_factor=round(sim_s / wall, 2) if wall > 0 else None)
+    return out
