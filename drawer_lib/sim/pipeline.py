@@ -12,6 +12,7 @@ the joint puts it at the same q; ~0 unless the physics fights the joint), the pa
 not reach their upper limit, the simulated and wall time.
 """
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,17 +25,20 @@ from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.motion import front_grid, kinematic_tracks
 from drawer_lib.runner import StageRun
+from drawer_lib.sim.interact import cup_rides_along, drop_on_counter, pull_handle
 from drawer_lib.sim.simulate import drive_open
 
 
 @dataclass(frozen=True)
 class SimulateConfig:
     """``grid``: n x n points per front; ``samples``: joint values recorded per part;
-    ``max_time``: simulated seconds per part (None: 2 x range / drive speed + 1 s)."""
+    ``max_time``: simulated seconds per part (None: 2 x range / drive speed + 1 s);
+    ``interactions``: run the probes of :mod:`drawer_lib.sim.interact`."""
 
     grid: int = 8
     samples: int = 200
     max_time: float | None = None
+    interactions: bool = True
 
     def __post_init__(self):
         if not (1 <= self.grid <= 64 and 2 <= self.samples <= 100_000):
@@ -90,6 +94,37 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
         out.update(kinematic_dev_max_m=max(devs) if devs else None,
                    n_parts_not_opened=sum(v["reached_fraction"] < 1 for v in per.values()),
                    n_sim_warnings=sum(v["problem"] is not None for v in per.values()),
+                   n_parts_diverged=sum(str(v["problem"]).startswith("diverged") for v in per.values()),
                    sim_time_s=round(sim_s, 4), drive_wall_s=round(wall, 4),
                    realtime_factor=round(sim_s / wall, 2) if wall > 0 else None)
+    if cfg.interactions and parts:
+        out.update(_interactions(xml, parts, run))
+    elif parts:
+        run.skip("interactions", "simulate.interactions = false")
     return out
+
+
+def _interactions(xml: Path, parts: list, run: StageRun) -> dict:
+    """The probes (module :mod:`drawer_lib.sim.interact`): a cup in every drawer, a hand on
+    every part, a block dropped on the counter; ``interactions.json`` and their metrics."""
+    t0 = time.perf_counter()
+    drawers = [p for p in parts if p.kind == "prismatic"
+               and abs(np.asarray(p.axis.direction) @ np.asarray(p.front.normal)) > 0.8]
+    probes = [cup_rides_along(xml, p) for p in run.progress(drawers, desc="cup in drawer", total=len(drawers))]
+    probes += [pull_handle(xml, p) for p in run.progress(parts, desc="pull handle", total=len(parts))]
+    probes.append(drop_on_counter(xml, parts))
+    write_json(run.dir / "interactions.json", {"probes": [dataclasses.asdict(x) for x in probes]})
+    m: dict = {}
+    for name, key, agg in (("cup_rides_along", "error_m", max), ("pull_handle", "peak_force_n", max),
+                           ("drop_on_counter", "rest_gap_m", lambda v: max(v, key=abs))):
+        ran = [x for x in probes if x.name == name and x.passed is not None]
+        if not ran:
+            reasons = sorted({x.reason for x in probes if x.name == name and x.reason})
+            run.skip(name, "; ".join(reasons) or ("no drawer" if name == "cup_rides_along" else "no part"))
+            continue
+        m[f"{name}_passed"] = sum(bool(x.passed) for x in ran)
+        m[f"{name}_n"] = len(ran)
+        m[f"{name}_{key.removesuffix('_m').removesuffix('_n')}_max" + ("_m" if key.endswith("_m") else "_n")] = \
+            float(agg([x.values[key] for x in ran]))
+    m["interactions_wall_s"] = round(time.perf_counter() - t0, 3)
+    return m

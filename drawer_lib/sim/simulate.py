@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 from jaxtyping import Float
 
-from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.errors import InputError
 from drawer_lib.sim.checks import _health
 from drawer_lib.sim.mjcf import part_index
 
@@ -23,7 +23,9 @@ class DrivenTrack:
     """``points`` [T, P, 3] (m, world) where the part's points were when its joint first reached
     each target (linear interpolation between the two steps around it; NaN for a target never
     reached), ``q`` [T] the joint value there (= the target when reached), ``time`` [T] (s),
-    ``reached`` [T] bool, and the simulation's ``problem`` (a NaN or MuJoCo warning) or None."""
+    ``reached`` [T] bool, and the simulation's ``problem`` (a MuJoCo warning, or "diverged: ..."
+    when the state went non-finite: the drive stops there, everything recorded is finite) or
+    None."""
 
     points: np.ndarray
     q: np.ndarray
@@ -79,6 +81,6 @@ def drive_open(m: mujoco.MjModel, pid: str, points: Float[np.ndarray, "P 3"], ta
             break
         prev_q, prev_x, prev_t = q, x, d.time
     problem, nonfinite = _health(m, d)
-    if nonfinite:
-        raise NonFiniteError(f"part {pid!r}: driving it open, the simulation diverged ({problem})")
+    if nonfinite:  # what was recorded before is finite; the caller reports the divergence
+        problem = f"diverged: {problem}"
     return DrivenTrack(out, qs, ts, np.isfinite(qs), problem, n)

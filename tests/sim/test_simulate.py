@@ -45,6 +45,12 @@ def test_every_part_opens_along_its_own_joint(simulated):
             assert ideal <= per[p.id]["time_to_upper_s"] <= 1.25 * ideal + 0.05
     with np.load(d / "simulate" / "tracks.npz") as t:
         assert t["drawer_0/points"].shape == (50, 64, 3) and t["drawer_0/reached"].all()
+    # the interaction probes ran, each a metric (tests/sim/test_interact.py checks them one by one)
+    assert (m["cup_rides_along_passed"], m["cup_rides_along_n"]) == (1, 1) and m["cup_rides_along_error_max_m"] < 0.005
+    assert (m["pull_handle_passed"], m["pull_handle_n"]) == (3, 3) and m["pull_handle_peak_force_max_n"] < 10
+    assert m["drop_on_counter_passed"] == 1 and abs(m["drop_on_counter_rest_gap_max_m"]) < 0.003
+    probes = json.loads((d / "simulate" / "interactions.json").read_text())["probes"]
+    assert [p["name"] for p in probes].count("pull_handle") == 3
 
 
 def test_simulated_tracks_against_the_part_itself_give_zero_emd(simulated):
