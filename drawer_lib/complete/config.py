@@ -82,7 +82,10 @@ class StaticCollisionConfig:
     y, then z into boxes; ``overlap: true`` lets a box grow over cells an earlier box covers
     (fewer, larger boxes; the union is the same); ``fill_tol``: a box may grow over a layer
     with up to this fraction of free cells (0: exact cover; more: fewer boxes over ragged
-    surfaces).
+    surfaces). ``skins``: thin boxes (``skin_thickness``) under the visual mesh's up-facing
+    surfaces (normal z >= ``skin_up_cos``) outside every carver, in ``skin_cell`` squares
+    (:func:`~drawer_lib.complete.static_collision.surface_skins`): carving takes a one-cell
+    counter with the cavity below it.
     """
 
     source: str = "field"
@@ -100,6 +103,10 @@ class StaticCollisionConfig:
     fill_tol: float = 0.0
     chunk: int = 200_000
     fidelity_points: int = 20_000
+    skins: bool = True
+    skin_cell: float = 0.02
+    skin_thickness: float = 0.01
+    skin_up_cos: float = 0.95
 
     def __post_init__(self):
         _check(self.source in ("field", "mesh"), f"complete.static.source = {self.source!r} must be field or mesh")
@@ -108,6 +115,8 @@ class StaticCollisionConfig:
         _check(0 < self.vertical_deg < 90, "complete.static.vertical_deg must be in (0, 90)")
         _check(0 < self.yaw_bin_deg <= 5, "complete.static.yaw_bin_deg must be in (0, 5]")
         _check(-1 < self.up_cos < 1, "complete.static.up_cos must be in (-1, 1)")
+        _check(0.005 <= self.skin_cell <= 0.5 and 0 < self.skin_thickness <= 0.1 and 0 < self.skin_up_cos < 1,
+               "complete.static: need skin_cell in [0.005, 0.5] m, skin_thickness in (0, 0.1] m, skin_up_cos in (0, 1)")
         _check(self.shell_depth >= 0, "complete.static.shell_depth must be >= 0 (0: off)")
         _check(self.carve_inflate >= 0, "complete.static.carve_inflate must be >= 0")
         _check(0 <= self.fill_tol < 0.5, f"complete.static.fill_tol = {self.fill_tol} must be in [0, 0.5)")

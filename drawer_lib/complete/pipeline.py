@@ -36,7 +36,7 @@ import trimesh
 
 from drawer_lib.articulation.fronts import sample_points
 from drawer_lib.complete.config import CompleteConfig
-from drawer_lib.complete.cut import body_owner, cut_parts, front_box, is_drawer
+from drawer_lib.complete.cut import OrientedBox, body_owner, cut_parts, front_box, is_drawer
 from drawer_lib.complete.interiors import (build_interiors, drawer_rule_interiors, floor_height, interior_colours)
 from drawer_lib.complete.io import STATIC, write_complete
 from drawer_lib.complete.rigid import build_rigids
@@ -167,7 +167,21 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
         field = load_field(inp.field)
     static_cavities = [it for it in interiors.values() if it.body == STATIC]
     carvers = [pc.sweep for pc in cut.parts.values()] + [it.outer.shape() for it in static_cavities]
-    sc = static_collision(cut.static, cfg.static, field, carvers, rigid_carvers)
+    # a drawer's box walls (the interior template) are not its cut solid: their travel is
+    # emptied too, exactly (a box translated along d over [lo, hi] lies in the box grown by
+    # |R^T d| (hi - lo) / 2 about its mid-travel centre)
+    wall_sweeps = []
+    for p in arts:
+        it = interiors.get(p.id)
+        if it is None or it.body != p.id or p.kind != "prismatic":
+            continue
+        d = np.asarray(p.axis.direction, np.float64) / np.linalg.norm(p.axis.direction)
+        lo, hi = p.limits
+        for w in it.walls:
+            R = np.asarray(w.rotation)
+            wall_sweeps.append(OrientedBox(np.asarray(w.center) + d * (lo + hi) / 2, R,
+                                           np.asarray(w.half) + np.abs(R.T @ d) * (hi - lo) / 2))
+    sc = static_collision(cut.static, cfg.static, field, carvers, rigid_carvers + wall_sweeps)
     cavity_walls = [w for it in static_cavities for w in it.walls] + pads
     times["static_collision_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -18,6 +18,7 @@ gives closed cabinets and a thick floor; surfaces seen only from below (the unde
 cabinet whose top is unseen) stay one cell thick.
 """
 
+import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -296,6 +297,59 @@ def boxes_to_shapes(boxes: Int[np.ndarray, "B 2 3"], grid: VoxelGrid) -> list[Sh
     return [box_shape(c, h, grid.rotation) for c, h in zip(centers, halves)]
 
 
+def surface_skins(mesh: trimesh.Trimesh, rotation: Float[np.ndarray, "3 3"], carvers: Sequence, cell: float = 0.02,
+                  thickness: float = 0.01, up_cos: float = 0.95, step: float = 0.01, min_points: int = 2,
+                  clearance: float = 0.005, seed: int = 0) -> list[Shape]:
+    """Thin boxes under the mesh's up-facing surfaces (a counter, a floor, a cabinet's top),
+    outside every carver: the cells carving empties around a cavity or a swept volume take the
+    counter above them with them (a counter is one 4 cm cell thick), so an object set on it
+    would sink to the cavity's top. Points are sampled on the faces whose normal has z >=
+    ``up_cos`` (~12 per ``cell``^2), binned in ``cell`` squares of the grid's frame
+    (``rotation``: its columns are the frame's axes); a bin with ``min_points`` is a skin at its
+    highest point's height, rounded to ``step``, when no corner or mid-point of its box (the
+    cell, ``thickness`` deep) lies within ``clearance`` of a carver; bins of one height merge
+    into rectangles (greedy)."""
+    up = np.flatnonzero(np.asarray(mesh.face_normals)[:, 2] >= up_cos)
+    if len(up) == 0:
+        return []
+    sub = mesh.submesh([up], append=True)
+    n = int(min(3_000_000, max(100, 12 * sub.area / cell ** 2)))
+    pts, _ = trimesh.sample.sample_surface(sub, n, seed=seed)
+    local = pts @ rotation  # grid frame (rotation about z: heights unchanged)
+    ij = np.floor(local[:, :2] / cell).astype(np.int64)
+    lo = ij.min(0)
+    ij -= lo
+    key = ij[:, 0] * (ij[:, 1].max() + 1) + ij[:, 1]
+    order = np.argsort(key, kind="stable")
+    keys, start, counts = np.unique(key[order], return_index=True, return_counts=True)
+    z = local[order, 2]
+    top = np.maximum.reduceat(z, start)  # the highest surface in each bin: what an object rests on
+    ok = counts >= min_points
+    bi = ij[order][start]
+    h = np.round(top / step) * step
+    carvers = [as_carver(c) for c in carvers]
+    centre = np.column_stack([(bi + lo + 0.5) * cell, h])  # [B, 3] grid frame
+    for dx, dy, dz in itertools.product((-0.5, 0.0, 0.5), (-0.5, 0.0, 0.5), (0.0, -1.0)):  # the cell's box
+        P = (centre + [dx * cell, dy * cell, dz * thickness]) @ rotation.T
+        for c in carvers:
+            blo, bhi = c.bounds(clearance)
+            near = np.flatnonzero(np.all((P >= blo) & (P <= bhi), axis=1) & ok)
+            if len(near):
+                ok[near[c.contains(P[near], clearance)]] = False
+    out: list[Shape] = []
+    nx, ny = int(bi[:, 0].max()) + 1, int(bi[:, 1].max()) + 1
+    for level in np.unique(h[ok]):  # loop over height levels
+        occ = np.zeros((nx, ny, 1), bool)
+        sel = ok & (h == level)
+        occ[bi[sel, 0], bi[sel, 1], 0] = True
+        for b in merge_boxes(occ, overlap=False):
+            (x0, y0, _), (x1, y1, _) = b
+            c = np.array([(x0 + x1) / 2 + lo[0], (y0 + y1) / 2 + lo[1], 0.0]) * cell
+            c[2] = level - thickness / 2
+            out.append(box_shape(c @ rotation.T, [(x1 - x0) * cell / 2, (y1 - y0) * cell / 2, thickness / 2], rotation))
+    return out
+
+
 # ------------------------------------------------------------------------------------ the step
 
 
@@ -347,10 +401,14 @@ def static_collision(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, field=No
     t3 = time.perf_counter()
     boxes = merge_boxes(grid.occ, cfg.overlap, cfg.fill_tol)
     shapes = boxes_to_shapes(boxes, grid)
+    skins = surface_skins(mesh, grid.rotation, list(carvers) + list(exact_carvers), cfg.skin_cell,
+                          cfg.skin_thickness, cfg.skin_up_cos) if cfg.skins else []
+    shapes += skins
     t4 = time.perf_counter()
     stats = {"source": cfg.source, "yaw_deg": round(math.degrees(yaw), 3), "cell_m": cfg.cell,
              "grid_shape": list(grid.occ.shape), "n_occupied": n_occ, "n_far": n_far, "n_carved": n_carved,
-             "n_island_cells": n_islands, "n_cells": int(grid.occ.sum()), "n_boxes": len(shapes),
+             "n_island_cells": n_islands, "n_cells": int(grid.occ.sum()), "n_boxes": len(shapes) - len(skins),
+             "n_skins": len(skins),
              "time_yaw_s": round(t1 - t0, 3), "time_occupancy_s": round(t2 - t1, 3),
              "time_carve_s": round(t3 - t2, 3), "time_merge_s": round(t4 - t3, 3),
              "wall_s": round(time.perf_counter() - t0, 3)}

@@ -17,7 +17,7 @@ from drawer_lib.complete.static_collision import (VoxelGrid, carve, collision_fi
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.sim.model import box_shape
 
-EXACT = StaticCollisionConfig(cell=0.04, shell_depth=0.0, fill_tol=0.0, min_island_voxels=0)
+EXACT = StaticCollisionConfig(cell=0.04, shell_depth=0.0, fill_tol=0.0, min_island_voxels=0, skins=False)
 
 
 def _cover(boxes, shape):
@@ -207,3 +207,42 @@ def test_bad_inputs():
         static_collision(mesh, EXACT, field=far)
     with pytest.raises(ValueError, match="fill_tol"):
         merge_boxes(np.ones((2, 2, 2), bool), fill_tol=1.0)
+
+
+def test_skins_keep_the_counter_above_a_carved_cavity():
+    """A base cabinet (0.6 x 0.6 x 0.82 m) under a 4 cm counter, its door's cavity carved out
+    (grown by a cell, as the stage does): the boxes lose the counter above it, the skins give
+    it back — one thin box at the counter's height over the cabinet — and none lies inside the
+    cavity or the door's sweep."""
+    from drawer_lib.complete.cut import OrientedBox
+    from drawer_lib.complete.static_collision import surface_skins
+
+    carcass = trimesh.creation.box((0.6, 0.6, 0.82)).apply_translation((0.3, 0.3, 0.41))
+    counter = trimesh.creation.box((1.2, 0.65, 0.04)).apply_translation((0.3, 0.32, 0.84))
+    floor = trimesh.creation.box((3.0, 3.0, 0.02)).apply_translation((0.3, 0.0, -0.01))
+    mesh = trimesh.util.concatenate([carcass, counter, floor])
+    cavity = OrientedBox(np.array([0.3, 0.32, 0.45]), np.eye(3), np.array([0.28, 0.28, 0.37]))  # top at 0.82
+    cfg = StaticCollisionConfig(source="mesh", cell=0.04, skins=False)
+    sc = static_collision(mesh, cfg, carvers=[cavity])
+    above = np.array([0.3, 0.3, 0.845])  # in the counter, above the cavity: carved away with it
+
+    def inside(s, p):
+        return bool(np.all(np.abs(np.asarray(s.rotation).T @ (p - np.asarray(s.center))) <= np.asarray(s.half)))
+
+    assert not any(inside(s, above) for s in sc.shapes)
+    skins = surface_skins(mesh, sc.grid.rotation, [cavity])
+    tops = np.array([s.center[2] + s.half[2] for s in skins])
+    on_counter = [s for s, t in zip(skins, tops) if abs(t - 0.86) < 0.006]
+    assert on_counter, tops
+    # the counter's skins cover the cabinet's footprint, thin, at the counter's top
+    xy = np.array([[x, y] for x in np.linspace(0.05, 0.55, 6) for y in np.linspace(0.05, 0.55, 6)])
+    covered = np.zeros(len(xy), bool)
+    for s in on_counter:
+        covered |= np.all(np.abs(xy - np.asarray(s.center)[:2]) <= np.asarray(s.half)[:2] + 1e-9, axis=1)
+        assert s.half[2] == pytest.approx(0.005)
+        assert not cavity.contains(np.asarray(s.center)[None]).any()
+    assert covered.all()
+    assert any(abs(t - 0.0) < 0.006 for t in tops)  # the floor too
+    # with skins on, the stage's boxes include them
+    sc2 = static_collision(mesh, StaticCollisionConfig(source="mesh", cell=0.04), carvers=[cavity])
+    assert sc2.stats["n_skins"] == len(skins) and len(sc2.shapes) == len(sc.shapes) + len(skins)
