@@ -15,6 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.parts import Part
 from drawer_lib.sim.checks import _health
 from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, part_index
@@ -165,8 +166,6 @@ def pull_handle(xml: Path, part: Part, speed_rad: float = 0.5, speed_m: float = 
     target, applied as a force at the grip (a weld to a mocap body would also damp the motion
     it follows: mocap bodies have no velocity). Passes when the part follows to within 2 % of
     its range; records the peak force the hand applied (N)."""
-    from drawer_lib.geometry.joints import joint_transform
-
     m = _spec(xml).compile()
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     d = mujoco.MjData(m)

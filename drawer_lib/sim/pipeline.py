@@ -9,7 +9,9 @@ last pose reached, and ``<id>/reached`` [K] says which were). ``evaluate`` compa
 the GT (motion EMD). ``metrics.json``: how far the simulation strays from the part's own
 kinematics (``kinematic_dev_max_m``: the largest distance between a simulated point and where
 the joint puts it at the same q; ~0 unless the physics fights the joint), the parts that did
-not reach their upper limit, the simulated and wall time.
+not reach their upper limit or diverged, the simulated and wall time; then the interaction
+probes of :mod:`drawer_lib.sim.interact` (a cup in each drawer, a hand on each part, a block
+dropped on the counter: ``interactions.json``, ``<probe>_passed`` / ``_n`` and the worst value).
 """
 
 import dataclasses
