@@ -104,7 +104,7 @@ def test_repro_builds_capture_then_does_nothing(repo):
         assert p.exists(), p
     ev = json.loads(sp.metrics("evaluate").read_text())
     assert "recall" in ev and ev["n_gt"] > 0
-    assert sp.file("simulate", "tracks").exists() and json.loads(sp.metrics("simulate").read_text())["n_parts"] >= 0
+    assert sp.file("simulate", "tracks").exists() and json.loads(sp.metrics("simulate").read_text())["n_parts"] == ev["n_pred"]
     assert "emd" in ev or "emd" in ev["skipped"]
     abl = json.loads((d / "reports" / "ablation" / LAYOUT["report"]["table_json"]).read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}

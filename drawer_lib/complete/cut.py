@@ -17,6 +17,7 @@ union then contains the exact swept volume.
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -129,6 +130,15 @@ def front_frame(front: Front) -> Float[np.ndarray, "3 3"]:
     """[3, 3] rotation whose columns are the front's (u, v, n) axes."""
     n, u = np.asarray(front.normal, np.float64), np.asarray(front.u, np.float64)
     return np.stack([u, np.cross(n, u), n], axis=1)
+
+
+def translated_box_hull(box, direction: Float[np.ndarray, "3"] | Sequence[float], lo: float, hi: float) -> OrientedBox:
+    """The oriented box that holds ``box`` (anything with ``center``, ``rotation``, ``half``)
+    translated by q * ``direction`` for every q in [lo, hi] (m): exactly the swept volume's
+    hull, the box grown by |R^T d| (hi - lo) / 2 about its mid-travel centre."""
+    d = np.asarray(direction, np.float64) / np.linalg.norm(direction)
+    R = np.asarray(box.rotation, np.float64)
+    return OrientedBox(np.asarray(box.center) + d * (lo + hi) / 2, R, np.asarray(box.half) + np.abs(R.T @ d) * (hi - lo) / 2)
 
 
 def front_box(front: Front, n_lo: float, n_hi: float, inset: float = 0.0) -> OrientedBox:

@@ -36,19 +36,19 @@ import trimesh
 
 from drawer_lib.articulation.fronts import sample_points
 from drawer_lib.complete.config import CompleteConfig
-from drawer_lib.complete.cut import OrientedBox, body_owner, cut_parts, front_box, is_drawer
+from drawer_lib.complete.cut import body_owner, cut_parts, front_box, front_frame, is_drawer, translated_box_hull
 from drawer_lib.complete.interiors import (build_interiors, drawer_rule_interiors, floor_height, interior_colours)
 from drawer_lib.complete.io import STATIC, write_complete
 from drawer_lib.complete.rigid import build_rigids
 from drawer_lib.complete.static_collision import collision_fidelity, static_collision
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, convex_pieces, mesh_shape
-from drawer_lib.geometry.camera import Camera
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import C0
 from drawer_lib.twin.gaussians import blend_weights, concat, load_gaussian_ply, subset
@@ -75,10 +75,8 @@ def _handle_hull(body: trimesh.Trimesh, part, max_proud: float, min_proud: float
     reaches past its own front.)"""
     v = np.asarray(body.vertices)
     f = part.front
-    rel = v - np.asarray(f.center)
-    n = rel @ np.asarray(f.normal)
-    inside = (np.abs(rel @ np.asarray(f.u)) <= f.size[0] / 2) & (np.abs(rel @ np.asarray(f.v)) <= f.size[1] / 2)
-    proud = inside & (n > min_proud) & (n <= max_proud)
+    u, w, n = ((v - np.asarray(f.center)) @ front_frame(f)).T
+    proud = (np.abs(u) <= f.size[0] / 2) & (np.abs(w) <= f.size[1] / 2) & (n > min_proud) & (n <= max_proud)
     if proud.sum() < 8:
         return []
     try:
@@ -168,19 +166,10 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     static_cavities = [it for it in interiors.values() if it.body == STATIC]
     carvers = [pc.sweep for pc in cut.parts.values()] + [it.outer.shape() for it in static_cavities]
     # a drawer's box walls (the interior template) are not its cut solid: their travel is
-    # emptied too, exactly (a box translated along d over [lo, hi] lies in the box grown by
-    # |R^T d| (hi - lo) / 2 about its mid-travel centre)
-    wall_sweeps = []
-    for p in arts:
-        it = interiors.get(p.id)
-        if it is None or it.body != p.id or p.kind != "prismatic":
-            continue
-        d = np.asarray(p.axis.direction, np.float64) / np.linalg.norm(p.axis.direction)
-        lo, hi = p.limits
-        for w in it.walls:
-            R = np.asarray(w.rotation)
-            wall_sweeps.append(OrientedBox(np.asarray(w.center) + d * (lo + hi) / 2, R,
-                                           np.asarray(w.half) + np.abs(R.T @ d) * (hi - lo) / 2))
+    # emptied too, exactly (not grown)
+    wall_sweeps = [translated_box_hull(w, p.axis.direction, *p.limits) for p in arts
+                   if p.kind == "prismatic" and (it := interiors.get(p.id)) is not None and it.body == p.id
+                   for w in it.walls]
     sc = static_collision(cut.static, cfg.static, field, carvers, rigid_carvers + wall_sweeps)
     cavity_walls = [w for it in static_cavities for w in it.walls] + pads
     times["static_collision_s"] = time.perf_counter() - t0
@@ -310,8 +299,7 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
             # around the carcass while the part is closed
             part = next(p for p in arts if p.id == pid)
             f = part.front
-            rel = w.means.double().numpy() - np.asarray(f.center)
-            u, v, n = rel @ np.asarray(f.u), rel @ np.asarray(f.v), rel @ np.asarray(f.normal)
+            u, v, n = ((w.means.double().numpy() - np.asarray(f.center)) @ front_frame(f)).T
             keep = (np.abs(u) < f.size[0] / 2 - 0.003) & (np.abs(v) < f.size[1] / 2 - 0.003) & (n < -cut_cfg.panel_thickness)
             out[it.body] = concat([out[it.body], subset(w, torch.from_numpy(np.nonzero(keep)[0]))])
             interior[it.body] = np.concatenate([interior[it.body], np.ones(int(keep.sum()), bool)])

@@ -41,7 +41,7 @@ class _Failures:
         self.nonfinite |= nonfinite
 
 
-def _health(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[str | None, bool]:
+def health(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[str | None, bool]:
     """(problem or None, whether it is non-finite) after a simulation: NaN / inf in the state or
     a MuJoCo warning counter above 0."""
     problems, nonfinite = [], False
@@ -165,7 +165,7 @@ def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p
     mujoco.mj_forward(m, d)
     d.ctrl[ix["actuator"]] = speed
     q = _run(m, d, n, ix["qpos"])
-    problem, nonfinite = _health(m, d)
+    problem, nonfinite = health(m, d)
     tol = c.drive_overshoot_rad if revolute else c.drive_overshoot_m
     rec.update(drive_time_s=t_open, drive_time_to_open_s=_first_time(q, c.open_fraction * hi, dt),
                drive_max_q=float(np.nanmax(q)) if np.isfinite(q).any() else math.nan,
@@ -188,7 +188,7 @@ def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p
     d.qfrc_applied[ix["dof"]] = force
     n = math.ceil(c.open_time / dt)
     q = _run(m_pull, d, n, ix["qpos"])
-    problem, nonfinite = _health(m_pull, d)
+    problem, nonfinite = health(m_pull, d)
     tol = c.pull_overshoot_rad if revolute else c.pull_overshoot_m
     level = lo + c.pull_fraction * (hi - lo)
     rec.update(pull_force=force, pull_time_to_open_s=_first_time(q, level, dt),
@@ -296,7 +296,7 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     mujoco.mj_step(m, d, nstep=n)
     wall = time.perf_counter() - t0
     drift = np.linalg.norm(d.xpos[bodies] - x0, axis=1) if len(rig) else np.zeros(0)
-    problem, nonfinite = _health(m, d)
+    problem, nonfinite = health(m, d)
     if problem:
         fails.add("scene", "rest", f"the scene at rest: the simulation is not healthy ({problem})", nonfinite)
     for r, dr, b in zip(rig, drift, bodies):

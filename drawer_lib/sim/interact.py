@@ -17,7 +17,7 @@ import numpy as np
 
 from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.parts import Part
-from drawer_lib.sim.checks import _health
+from drawer_lib.sim.checks import health
 from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, part_index
 
 PROBE = "probe"
@@ -106,7 +106,7 @@ def cup_rides_along(xml: Path, part: Part, open_fraction: float = 0.8, close_spe
     mujoco.mj_step(m, d, nstep=math.ceil(settle / m.opt.timestep))
     q1 = float(d.qpos[ix["qpos"]])
     moved = float((d.xpos[cup] - x0) @ ax)
-    problem, _ = _health(m, d)
+    problem, _ = health(m, d)
     err = abs(moved - (q1 - q0))
     ok = bool(problem is None and err <= tol and float(d.xpos[cup][2]) > hit[2] - tol)
     return Probe("cup_rides_along", part.id, ok, {"drawer_travel_m": q1 - q0, "cup_travel_m": moved,
@@ -150,7 +150,7 @@ def drop_on_counter(xml: Path, parts: list[Part], height: float = 0.2, rest: flo
     blk = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, PROBE)
     speed = _settled(m, d, blk, rest)
     bottom = float(d.xpos[blk][2]) - 0.03
-    problem, _ = _health(m, d)
+    problem, _ = health(m, d)
     gap = bottom - float(surface[2])
     ok = bool(problem is None and speed < 0.01 and abs(gap) <= tol)
     return Probe("drop_on_counter", p.id, ok, {"counter_z_m": float(surface[2]), "rest_gap_m": gap,
@@ -193,7 +193,7 @@ def pull_handle(xml: Path, part: Part, speed_rad: float = 0.5, speed_m: float = 
         peak = max(peak, float(np.linalg.norm(f)))
         x_prev, tgt_prev = x, tgt
     q_end = float(d.qpos[ix["qpos"]])
-    problem, _ = _health(m, d)
+    problem, _ = health(m, d)
     ok = bool(problem is None and abs(q_end - goal) <= 0.02 * (hi - lo))
     return Probe("pull_handle", part.id, ok, {"goal_q": goal, "reached_q": q_end, "peak_force_n": peak,
                                               "problem": problem})

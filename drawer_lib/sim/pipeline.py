@@ -117,8 +117,9 @@ def _interactions(xml: Path, parts: list, run: StageRun) -> dict:
     probes.append(drop_on_counter(xml, parts))
     write_json(run.dir / "interactions.json", {"probes": [dataclasses.asdict(x) for x in probes]})
     m: dict = {}
-    for name, key, agg in (("cup_rides_along", "error_m", max), ("pull_handle", "peak_force_n", max),
-                           ("drop_on_counter", "rest_gap_m", lambda v: max(v, key=abs))):
+    for name, key, metric, agg in (("cup_rides_along", "error_m", "error_max_m", max),
+                                   ("pull_handle", "peak_force_n", "peak_force_max_n", max),
+                                   ("drop_on_counter", "rest_gap_m", "rest_gap_max_m", lambda v: max(v, key=abs))):
         ran = [x for x in probes if x.name == name and x.passed is not None]
         if not ran:
             reasons = sorted({x.reason for x in probes if x.name == name and x.reason})
@@ -126,7 +127,6 @@ def _interactions(xml: Path, parts: list, run: StageRun) -> dict:
             continue
         m[f"{name}_passed"] = sum(bool(x.passed) for x in ran)
         m[f"{name}_n"] = len(ran)
-        m[f"{name}_{key.removesuffix('_m').removesuffix('_n')}_max" + ("_m" if key.endswith("_m") else "_n")] = \
-            float(agg([x.values[key] for x in ran]))
+        m[f"{name}_{metric}"] = float(agg([x.values[key] for x in ran]))
     m["interactions_wall_s"] = round(time.perf_counter() - t0, 3)
     return m

@@ -14,7 +14,7 @@ import numpy as np
 from jaxtyping import Float
 
 from drawer_lib.errors import InputError
-from drawer_lib.sim.checks import _health
+from drawer_lib.sim.checks import health
 from drawer_lib.sim.mjcf import part_index
 
 
@@ -80,7 +80,7 @@ def drive_open(m: mujoco.MjModel, pid: str, points: Float[np.ndarray, "P 3"], ta
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
             break
         prev_q, prev_x, prev_t = q, x, d.time
-    problem, nonfinite = _health(m, d)
+    problem, nonfinite = health(m, d)
     if nonfinite:  # what was recorded before is finite; the caller reports the divergence
         problem = f"diverged: {problem}"
     return DrivenTrack(out, qs, ts, np.isfinite(qs), problem, n)

@@ -18,11 +18,11 @@ from jaxtyping import Float
 from torch import Tensor
 
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_mul
 from drawer_lib.io.parts import Part
 from drawer_lib.splat.ply import read_gaussian_ply
-from drawer_lib.geometry.camera import Camera
 from drawer_lib.splat.project import project_gaussians_fused
 from drawer_lib.splat.rasterize import composite
 from drawer_lib.splat.render import Gaussians
