@@ -41,10 +41,13 @@ LAYOUT = {
     "evaluate": {"dir": "evaluate", "matches": "evaluate/matches.json"},
     "complete": {"dir": "complete", "index": "complete/complete.json"},
     "simulate": {"dir": "simulate", "tracks": "simulate/tracks.npz", "motion": "simulate/motion.json"},
+    "stability": {"dir": "stability", "matrix": "stability/matrix.csv", "heatmap": "stability/heatmap.png",
+                  "choice": "stability/choice.json"},
     "twin": {"dir": "twin", "mjcf": "twin/scene.xml", "urdf": "twin/urdf/scene.urdf", "usd": "twin/scene.usda",
              "index": "twin/twin.json", "gaussians": "twin/gaussians", "renders": "twin/renders"},
     "appearance": {"dir": "appearance", "model": "model", "renders": "renders"},  # inside appearance/<variant>/
-    "report": {"table": "table.md", "table_json": "table.json", "plot": "curves.png"},  # inside reports/<name>/
+    "report": {"table": "table.md", "table_json": "table.json", "plot": "curves.png",  # inside reports/<name>/
+               "index": "index.html", "summary": "summary.md", "extremes": "extremes.json"},  # in reports/
     "metrics": "metrics.json",  # in every stage folder
     "curve": "curve.csv",  # in every iterative stage's folder
 }

@@ -22,7 +22,7 @@ def main(cfg: DictConfig) -> None:
     sc = to_typed(SimulateConfig, cfg.simulate, "simulate")
     src, dst = scene_paths(cfg, scene)
     with stage_run("simulate", dst.stage_dir("simulate"), seed=cfg.seed) as run:
-        run.metrics.update(run_simulate(sc, src.parts, src.stage_dir("twin"), run))
+        run.metrics.update(run_simulate(sc, src.parts, src.stage_dir("twin"), run, src.file("stability", "choice")))
 
 
 if __name__ == "__main__":

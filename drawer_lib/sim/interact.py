@@ -35,8 +35,14 @@ class Probe:
     reason: str | None = None
 
 
-def _spec(xml: Path) -> mujoco.MjSpec:
-    return mujoco.MjSpec.from_file(str(xml))
+def _spec(xml: Path, option: tuple[str, float] | None = None) -> mujoco.MjSpec:
+    """The twin's spec; ``option`` = (integrator, timestep) overrides its own (the stability
+    study's choice)."""
+    spec = mujoco.MjSpec.from_file(str(xml))
+    if option is not None:
+        spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{option[0].upper()}")
+        spec.option.timestep = float(option[1])
+    return spec
 
 
 def _add_block(spec: mujoco.MjSpec, pos, half, mass: float) -> None:
@@ -64,13 +70,13 @@ def _ray_down(m: mujoco.MjModel, d: mujoco.MjData, start, body: int | None = Non
 
 
 def cup_rides_along(xml: Path, part: Part, open_fraction: float = 0.8, close_speed: float = 0.1, settle: float = 0.5,
-                    tol: float = 0.01) -> Probe:
+                    tol: float = 0.01, option: tuple[str, float] | None = None) -> Probe:
     """A cup (a block 8 x 8 x 6 cm, 0.2 kg) set on the bottom of drawer ``part`` opened to
     ``open_fraction`` of its range; the drawer then driven closed at ``close_speed`` (m/s; a
     gentle hand: the velocity servo's 20 ms ramp at DRAWER's 0.5 m/s is 25 m/s^2, which tips
     any cup). Passes when the cup's travel along the drawer's axis is the drawer's within ``tol``
     and it is still in the drawer."""
-    spec = _spec(xml)
+    spec = _spec(xml, option)
     m0 = spec.compile()
     ix = part_index(m0, part.id)
     d0 = mujoco.MjData(m0)
@@ -121,13 +127,14 @@ def _settled(m: mujoco.MjModel, d: mujoco.MjData, body: int, seconds: float) -> 
     return float(np.linalg.norm(v[3:]))
 
 
-def drop_on_counter(xml: Path, parts: list[Part], height: float = 0.2, rest: float = 2.0, tol: float = 0.01) -> Probe:
+def drop_on_counter(xml: Path, parts: list[Part], height: float = 0.2, rest: float = 2.0, tol: float = 0.01,
+                    option: tuple[str, float] | None = None) -> Probe:
     """A block (8 x 8 x 6 cm, 0.2 kg) dropped from ``height`` above the counter: found by a ray
     cast down 15 cm behind the front of a base cabinet (a part whose front's top is below 1.2 m),
     from 45 cm above that front, hitting the static scene within 20 cm above the front's top.
     Passes when after ``rest`` seconds it moves < 1 cm/s and its bottom is within ``tol`` of
     the counter's surface (it neither sank in nor passed through)."""
-    spec = _spec(xml)
+    spec = _spec(xml, option)
     m0 = spec.compile()
     d0 = mujoco.MjData(m0)
     mujoco.mj_forward(m0, d0)
@@ -158,7 +165,8 @@ def drop_on_counter(xml: Path, parts: list[Part], height: float = 0.2, rest: flo
 
 
 def pull_handle(xml: Path, part: Part, speed_rad: float = 0.5, speed_m: float = 0.2, fraction: float = 0.9,
-                proud: float = 0.03, stiffness: float = 1000.0, damping: float = 60.0) -> Probe:
+                proud: float = 0.03, stiffness: float = 1000.0, damping: float = 60.0,
+                option: tuple[str, float] | None = None) -> Probe:
     """A hand pulling the part at its handle (``proud`` in front of its front's centre) along
     its opening path to ``fraction`` of its range, smoothly (smoothstep), at most at
     ``speed_m`` (m/s, drawers) or ``speed_rad`` (rad/s, hinges), actuators off. The hand is a
@@ -166,7 +174,7 @@ def pull_handle(xml: Path, part: Part, speed_rad: float = 0.5, speed_m: float = 
     target, applied as a force at the grip (a weld to a mocap body would also damp the motion
     it follows: mocap bodies have no velocity). Passes when the part follows to within 2 % of
     its range; records the peak force the hand applied (N)."""
-    m = _spec(xml).compile()
+    m = _spec(xml, option).compile()
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)

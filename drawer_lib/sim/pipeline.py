@@ -1,8 +1,8 @@
 """What the ``simulate`` stage does: ``twin/scene.xml`` + ``parts.json`` -> ``simulate/``.
 
 Every articulated part is driven open through its velocity actuator (DRAWER's 50°/s and
-0.5 m/s), one at a time from the rest state, with the integrator and timestep of the twin's
-model; the ``grid`` x ``grid`` points of its front are recorded when its joint first reaches
+0.5 m/s), one at a time from the rest state, with the integrator and timestep the
+``stability`` study chose (``choice.json``; or the twin's own with ``use_stability: false``); the ``grid`` x ``grid`` points of its front are recorded when its joint first reaches
 each of ``samples`` values spread evenly over its range (``tracks.npz``: per part ``<id>/q``
 [K], ``<id>/time`` [K] s, ``<id>/points`` [K, P, 3] m, world; a value never reached keeps the
 last pose reached, and ``<id>/reached`` [K] says which were). ``evaluate`` compares them with
@@ -29,18 +29,22 @@ from drawer_lib.metrics.motion import front_grid, kinematic_tracks
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.interact import cup_rides_along, drop_on_counter, pull_handle
 from drawer_lib.sim.simulate import drive_open
+from drawer_lib.sim.stability_stage import read_choice
 
 
 @dataclass(frozen=True)
 class SimulateConfig:
     """``grid``: n x n points per front; ``samples``: joint values recorded per part;
     ``max_time``: simulated seconds per part (None: 2 x range / drive speed + 1 s);
-    ``interactions``: run the probes of :mod:`drawer_lib.sim.interact`."""
+    ``interactions``: run the probes of :mod:`drawer_lib.sim.interact`; ``use_stability``: run
+    with the integrator and timestep of the ``stability`` stage's ``choice.json`` (else the
+    twin's own, from ``scene.xml``)."""
 
     grid: int = 8
     samples: int = 200
     max_time: float | None = None
     interactions: bool = True
+    use_stability: bool = True
 
     def __post_init__(self):
         if not (1 <= self.grid <= 64 and 2 <= self.samples <= 100_000):
@@ -49,8 +53,10 @@ class SimulateConfig:
             raise ConfigError(f"simulate.max_time = {self.max_time} must be > 0 s or null")
 
 
-def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: StageRun) -> dict:
-    """Drive every articulated part open (module doc); write ``tracks.npz`` and ``motion.json``."""
+def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: StageRun, choice_path: Path | None = None
+                 ) -> dict:
+    """Drive every articulated part open (module doc); write ``tracks.npz`` and ``motion.json``.
+    ``choice_path``: the stability study's ``choice.json`` (used when ``cfg.use_stability``)."""
     xml = twin_dir / "scene.xml"
     if not xml.is_file():
         raise InputError(f"{xml}: missing (run the twin stage first)")
@@ -60,6 +66,14 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
         m = mujoco.MjModel.from_xml_path(str(xml))
     except ValueError as e:
         raise InputError(f"{xml}: MuJoCo cannot load it ({e})") from e
+    option = None
+    if cfg.use_stability:
+        if choice_path is None or not Path(choice_path).is_file():
+            raise InputError(f"{choice_path}: missing (run the stability stage, or set simulate.use_stability=false)")
+        ch = read_choice(choice_path)
+        option = (ch["integrator"], float(ch["timestep"]))
+        m.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{option[0].upper()}")
+        m.opt.timestep = option[1]
     parts = [p for p in read_parts(parts_path).parts if p.articulated]
     out: dict = {"n_parts": len(parts), "timestep": float(m.opt.timestep),
                  "integrator": mujoco.mjtIntegrator(int(m.opt.integrator)).name.removeprefix("mjINT_").lower()}
@@ -100,21 +114,22 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
                    sim_time_s=round(sim_s, 4), drive_wall_s=round(wall, 4),
                    realtime_factor=round(sim_s / wall, 2) if wall > 0 else None)
     if cfg.interactions and parts:
-        out.update(_interactions(xml, parts, run))
+        out.update(_interactions(xml, parts, run, option))
     elif parts:
         run.skip("interactions", "simulate.interactions = false")
     return out
 
 
-def _interactions(xml: Path, parts: list, run: StageRun) -> dict:
+def _interactions(xml: Path, parts: list, run: StageRun, option: tuple[str, float] | None = None) -> dict:
     """The probes (module :mod:`drawer_lib.sim.interact`): a cup in every drawer, a hand on
     every part, a block dropped on the counter; ``interactions.json`` and their metrics."""
     t0 = time.perf_counter()
     drawers = [p for p in parts if p.kind == "prismatic"
                and abs(np.asarray(p.axis.direction) @ np.asarray(p.front.normal)) > 0.8]
-    probes = [cup_rides_along(xml, p) for p in run.progress(drawers, desc="cup in drawer", total=len(drawers))]
-    probes += [pull_handle(xml, p) for p in run.progress(parts, desc="pull handle", total=len(parts))]
-    probes.append(drop_on_counter(xml, parts))
+    probes = [cup_rides_along(xml, p, option=option)
+              for p in run.progress(drawers, desc="cup in drawer", total=len(drawers))]
+    probes += [pull_handle(xml, p, option=option) for p in run.progress(parts, desc="pull handle", total=len(parts))]
+    probes.append(drop_on_counter(xml, parts, option=option))
     write_json(run.dir / "interactions.json", {"probes": [dataclasses.asdict(x) for x in probes]})
     m: dict = {}
     for name, key, metric, agg in (("cup_rides_along", "error_m", "error_max_m", max),

@@ -26,7 +26,7 @@ def simulated(tmp_path_factory):
     parts = F.parts_of(model)
     write_parts(d / "parts.json", parts)
     (d / "simulate").mkdir()
-    m = run_simulate(SimulateConfig(samples=50), d / "parts.json", d / "twin", StageRun("simulate", d / "simulate",
+    m = run_simulate(SimulateConfig(samples=50, use_stability=False), d / "parts.json", d / "twin", StageRun("simulate", d / "simulate",
                                                                                           d / "simulate", 0))
     return d, parts, m
 
