@@ -6,7 +6,8 @@ Per kitchen of ``--split`` (default ``test``: never tuned on), on the capture an
 ``scripts/bench_articulation.py`` built for it (the ``generic`` detections), copied to
 ``--out``: decompose + articulate with the current code, ``complete`` (no appearance model: the
 EMD needs no Gaussians), ``twin`` (its physical checks on; a failing check is recorded and the
-twin built unchecked), ``simulate`` (drives + probes) and ``evaluate`` (precision, recall,
+twin built unchecked), ``stability`` on the twin's parts (the extreme cases do not depend on
+the kitchen), ``simulate`` (drives + probes, with the stability choice) and ``evaluate`` (precision, recall,
 EA-score, motion EMD). Reports the EMD per kitchen and pooled over every correct part (the
 paper: 1.41e-5), the simulation's deviation from the joints, the probes and the wall times;
 writes ``<out>/<split>/results.json`` and ``summary.md``.
@@ -20,6 +21,7 @@ import json
 import shutil
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +43,7 @@ from drawer_lib.io.capture import load_capture  # noqa: E402
 from drawer_lib.metrics.evaluate import run_evaluate  # noqa: E402
 from drawer_lib.paths import ScenePaths  # noqa: E402
 from drawer_lib.sim.pipeline import SimulateConfig, run_simulate  # noqa: E402
+from drawer_lib.sim.stability_stage import StabilityConfig, run_stability  # noqa: E402
 from drawer_lib.synth.splits import SPLITS  # noqa: E402
 from drawer_lib.twin.config import TwinConfig  # noqa: E402
 from drawer_lib.twin.pipeline import run_twin  # noqa: E402
@@ -82,9 +85,16 @@ def one_kitchen(split: str, k: int, data: Path, out: Path) -> tuple[dict, list[d
         _stage("twin", sp.stage_dir("twin"), lambda r: run_twin(tc, cap, sp.parts, sp.stage_dir("complete"), r,
                                                                 scene_config(cfg, split, k), render))
     times["twin_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()  # the stability study on this twin's parts (the extremes do not depend on the scene)
+    stc = to_typed(StabilityConfig, OmegaConf.merge(cfg.stability, {"extremes": False}), "stability")
+    st = _stage("stability", sp.stage_dir("stability"), lambda r: run_stability(
+        stc, sp.parts, sp.stage_dir("twin"), (tc.sim.integrator, tc.sim.timestep), r))
+    times["stability_s"] = time.perf_counter() - t0
+    row |= {f"stab_{x}": st.get(x) for x in ("integrator", "timestep", "nominal_error_m", "realtime_factor")}
     t0 = time.perf_counter()
     sm = _stage("simulate", sp.stage_dir("simulate"), lambda r: run_simulate(
-        to_typed(SimulateConfig, cfg.simulate, "simulate"), sp.parts, sp.stage_dir("twin"), r))
+        to_typed(SimulateConfig, cfg.simulate, "simulate"), sp.parts, sp.stage_dir("twin"), r,
+        sp.file("stability", "choice")))
     times["simulate_s"] = time.perf_counter() - t0
     em = _stage("evaluate", sp.stage_dir("evaluate"), lambda r: run_evaluate(cap, sp.parts, r,
                                                                              sp.file("simulate", "tracks")))
@@ -118,8 +128,13 @@ def summary(rows: list[dict], parts: list[dict], split: str) -> str:
          f"| blocks dropped on the counter resting on it | {sum(r.get('sim_drop_on_counter_passed', 0) for r in rows)} / "
          f"{sum(r.get('sim_drop_on_counter_n', 0) for r in rows)} |",
          f"| twins failing a physical check | {sum('check_error' in r for r in rows)} |",
-         f"| complete / twin / simulate s | {f('complete_s', '{:.1f}')} / {f('twin_s', '{:.1f}')} / "
-         f"{f('simulate_s', '{:.1f}')} |"]
+         "| stability choice (integrator, timestep: kitchens) | " + ", ".join(
+             f"{i} {t:g} s: {n}" for (i, t), n in sorted(Counter((r.get('stab_integrator'), r.get('stab_timestep'))
+                                                                for r in rows).items(), key=str)) + " |",
+         f"| worst part error at the choice (m) / full twin real-time factor | {f('stab_nominal_error_m')} / "
+         f"{f('stab_realtime_factor', '{:.1f}')} |",
+         f"| complete / twin / stability / simulate s | {f('complete_s', '{:.1f}')} / {f('twin_s', '{:.1f}')} / "
+         f"{f('stability_s', '{:.1f}')} / {f('simulate_s', '{:.1f}')} |"]
     return "\n".join(x for x in L if x) + "\n"
 
 

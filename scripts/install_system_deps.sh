@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Debian libraries for headless rendering (MuJoCo via EGL or OSMesa) and Open3D (libusb).
+# Debian libraries for headless rendering (MuJoCo via EGL or OSMesa), Open3D (libusb) and the
+# browser the report test opens its page in (chromium, headless).
 # Installs only what is missing; needs root (or sudo) the first time.
 set -euo pipefail
-pkgs=(libegl1 libegl-mesa0 libgl1 libosmesa6 libusb-1.0-0)
+pkgs=(libegl1 libegl-mesa0 libgl1 libosmesa6 libusb-1.0-0 chromium)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -29,7 +29,10 @@ FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.
                "appearance_variants=[textured_mesh,movable_gs_ste]",
                # an 8-step SDF makes a mesh no twin could pass its physical checks on: the smoke test
                # checks the plumbing (the checks are tested on fixtures, tests/sim, and run on kitchen_small)
-               "twin.check=false", "twin.renders.max_views=1", "twin.renders.lpips=false"]
+               "twin.check=false", "twin.renders.max_views=1", "twin.renders.lpips=false",
+               # the stability study on the twin's parts at two timesteps; the report without the extremes' pytest run
+               "stability.extremes=false", "stability.timesteps=[0.001,0.002]", "stability.integrators=[implicitfast,euler]",
+               "stability.rtf_time=0.2", "report.extremes=false"]
 
 
 def make_repo(tmp_path_factory, params: list[str], prepare=None):
@@ -106,6 +109,12 @@ def test_repro_builds_capture_then_does_nothing(repo):
     assert "recall" in ev and ev["n_gt"] > 0
     assert sp.file("simulate", "tracks").exists() and json.loads(sp.metrics("simulate").read_text())["n_parts"] == ev["n_pred"]
     assert "emd" in ev or "emd" in ev["skipped"]
+    choice = json.loads(sp.file("stability", "choice").read_text())
+    assert choice["integrator"] in ("implicitfast", "euler") and choice["timestep"] in (0.001, 0.002)
+    assert json.loads(sp.metrics("simulate").read_text())["timestep"] == choice["timestep"]  # simulate ran with it
+    page = (d / "reports" / LAYOUT["report"]["index"]).read_text()
+    assert '<section id="stability">' in page and "kitchen_tiny" in page
+    assert "report.extremes = false" in (d / "reports" / LAYOUT["report"]["summary"]).read_text()
     abl = json.loads((d / "reports" / "ablation" / LAYOUT["report"]["table_json"]).read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
     assert (sp.appearance_dir("movable_gs_ste") / LAYOUT["appearance"]["model"] / "gaussians.ply").exists()

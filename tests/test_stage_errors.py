@@ -34,9 +34,17 @@ def test_evaluate_names_a_malformed_parts_file(tmp_path, exact_capture):
 
 def test_report_stages_without_metrics_name_the_folder(tmp_path):
     (tmp_path / "out").mkdir()
-    for stage in ("geometry_table", "ablation"):
+    for stage in ("geometry_table", "ablation", "report"):
         _assert_named_error(run_stage(stage, tmp_path), str(tmp_path / "out"))
         assert not (tmp_path / "reports").exists()
+
+
+def test_stability_and_simulate_name_what_is_missing(tmp_path):
+    (tmp_path / "out" / "kitchen_tiny").mkdir(parents=True)
+    _assert_named_error(run_stage("stability", tmp_path), "scene.xml", "twin")
+    assert not (tmp_path / "out" / "kitchen_tiny" / "stability").exists()
+    _assert_named_error(run_stage("simulate", tmp_path), "scene.xml")
+    _assert_named_error(run_stage("stability", tmp_path, "stability.integrators=[verlet]"), "verlet")
 
 
 def test_misspelt_scene_key_is_named(tmp_path, exact_capture):

@@ -155,7 +155,7 @@ def heatmap(rows: list[dict], tolerance: float, path: Path, choice: tuple[str, f
     ax.set_xlabel("timestep (s)")
     fig.colorbar(im, ax=ax, label="log10(error / tolerance)", shrink=0.8)
     ax.legend(loc="upper left", bbox_to_anchor=(1.25, 1.0), fontsize=7, frameon=False)
-    ax.set_title(f"stability: error against the reference (tolerance {tolerance:g})", fontsize=9, pad=16)
+    ax.set_title(f"stability: error against the reference (tolerance {tolerance:g})", fontsize=9, pad=24)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

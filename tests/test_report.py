@@ -1,0 +1,162 @@
+"""The report (drawer_lib/report/dashboard.py, extremes.py, stages/report.py): what it collects
+and skips, its tables, the numerical-extremes table's tests, and the page in a real headless
+Chromium without network (every section present, every figure decoded, not blank)."""
+
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from helpers import ROOT
+
+from drawer_lib.paths import LAYOUT, ScenePaths
+from drawer_lib.report.dashboard import SECTIONS, collect, render
+from drawer_lib.report.extremes import ROWS, _junit, run_extremes
+from drawer_lib.sim.stability_stage import heatmap, write_matrix
+
+SCENE = "tiny"
+
+
+def _write(p, obj):
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(json.dumps(obj))
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    """out/ and reports/ of one scene as the stages write them (metrics only; no stability run
+    for the second scene, so its stages are listed as skipped)."""
+    d = tmp_path_factory.mktemp("report")
+    out, reports = d / "out", d / "reports"
+    sp = ScenePaths(out, SCENE)
+    m = {"capture": {"n_frames": 12}, "sdf": {"skipped": {"mono_depth_loss": "metric depth is used instead"}},
+         "mesh": {"chamfer_l1": 0.0042, "fscore_2cm": 0.91}, "decompose": {}, "articulate": {},
+         "evaluate": {"precision": 0.8, "recall": 0.75, "ea_score": 0.95, "n_pred": 5, "n_gt": 6, "n_correct": 4,
+                      "emd": 2.5e-5, "emd_max": 9e-5, "n_emd": 4},
+         "complete": {}, "twin": {"closed_psnr": 40.1, "open_psnr": 33.3, "open_region_psnr": 24.0},
+         "simulate": {"integrator": "implicitfast", "timestep": 0.002, "kinematic_dev_max_m": 0.001,
+                      "realtime_factor": 12.0, "cup_rides_along_passed": 2, "cup_rides_along_n": 2,
+                      "cup_rides_along_error_max_m": 0.002},
+         "stability": {"integrator": "implicitfast", "timestep": 0.002, "realtime_factor": 15.0}}
+    for k, (st, v) in enumerate(m.items()):
+        _write(sp.metrics(st), v | {"wall_s": 1.0 + k, "peak_rss_mb": 100.0 + k})
+    curve = sp.stage_dir("sdf") / LAYOUT["curve"]
+    curve.write_text("step,wall_s,chamfer_l1\n10,1.0,0.02\n20,2.0,0.01\n")
+    rows = [{"case": c, "group": g, "integrator": i, "timestep": dt, "error": (math.inf if dv else e),
+             "unit": "m", "reference": "rk4", "wall_per_sim_s": 0.01 / dt * 1e-3, "diverged": dv,
+             "reason": "energy grew" if dv else None}
+            for c, g in (("twin_parts/drawer_0", "nominal"), ("stiff_joint", "extreme"))
+            for i in ("euler", "implicitfast") for dt, e, dv in ((1e-3, 2e-4, False), (2e-3, 4e-4, c == "stiff_joint"))]
+    write_matrix(sp.file("stability", "matrix"), rows)
+    heatmap(rows, 1e-3, sp.file("stability", "heatmap"), ("implicitfast", 2e-3))
+    _write(sp.file("stability", "choice"),
+           {"integrator": "implicitfast", "timestep": 2e-3, "source": "stability", "tolerance": 1e-3,
+            "nominal_error": 4e-4, "realtime_factor": 15.0, "agrees_with_twin_default": True,
+            "twin_default": {"integrator": "implicitfast", "timestep": 2e-3, "realtime_factor": 15.0},
+            "outside": [{"case": "stiff_joint", "note": "w = 3162 rad/s", "diverged": True, "reason": "energy grew",
+                         "error": None, "unit": "rad", "largest_stable_timestep": 1e-3,
+                         "remedy": {"armature": 0.1, "damping": 10.0}}]})
+    _write(reports / "geometry" / LAYOUT["report"]["table_json"],
+           {SCENE: {"neural (selected)": {"chamfer_l1": 0.0042, "fscore_1cm": 0.8, "fscore_2cm": 0.91}}})
+    extremes = [{"extreme": "SDF density at β = 1e-5", "expect": "finite", "test": ROWS[0][2], "outcome": "passed",
+                 "seconds": 0.01, "message": None}]
+    data = collect(out, reports, [SCENE, "never_ran"], [], ["static_gs"], extremes)
+    return d, data
+
+
+def test_collect_reads_the_metrics_and_lists_every_skip(outputs):
+    _, data = outputs
+    sc = data.scenes[0]
+    assert sc.metrics["evaluate"]["emd"] == 2.5e-5 and sc.choice["integrator"] == "implicitfast"
+    assert len(sc.stability_rows) == 8 and sc.heatmap is not None
+    why = {(s, w): r for s, w, r in data.skipped}
+    assert why[(SCENE, "sdf: mono_depth_loss")] == "metric depth is used instead"
+    assert all((("never_ran", st) in why) for st in ("capture", "twin", "stability"))
+    assert data.ablation is None  # no ablation table: a skip, not zeros
+
+
+def test_render_has_every_section_and_the_paper_columns(outputs):
+    _, data = outputs
+    page, md = render(data)
+    for key, title in SECTIONS:
+        assert f'<section id="{key}">' in page and f"## {title}" in md
+    assert "| tiny | 5 | 6 | 4 | 0.800 | 0.750 | 0.950 |" in md  # Tab. 4 row
+    assert "2.5e-05" in md and "1.41e-05" in md  # our EMD next to the paper's
+    assert "stiff_joint" in md and "0.1" in md  # the extreme outside the choice, with its remedy
+    assert "skipped: reports/ablation/table.json is missing" in md
+    assert "http://" not in page and "https://" not in page and "<script" not in page  # nothing to fetch
+
+
+def test_junit_parsing_and_a_stale_test_id(tmp_path):
+    xml = tmp_path / "j.xml"
+    xml.write_text('<testsuites><testsuite><testcase classname="tests.sdf.test_x" name="test_a[1e-05]" time="0.5"/>'
+                   '<testcase classname="tests.test_y" name="test_b" time="1"><failure message="boom&#10;x"/>'
+                   "</testcase></testsuite></testsuites>")
+    got = _junit(xml)
+    assert got["tests/sdf/test_x.py::test_a[1e-05]"] == ("passed", 0.5, None)
+    assert got["tests/test_y.py::test_b"] == ("failed", 1.0, "boom")
+
+
+def test_every_extremes_row_names_a_collected_test():
+    ids = [r[2] for r in ROWS]
+    r = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", *ids],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    collected = set(re.findall(r"^(tests/\S+::\S+)$", r.stdout, re.M))
+    assert set(ids) <= collected, set(ids) - collected
+
+
+def test_run_extremes_reports_each_tests_outcome(tmp_path, monkeypatch):
+    import drawer_lib.report.extremes as ex
+
+    rows = (ROWS[0], ("a test that does not exist", "-", "tests/test_report.py::test_no_such_test"))
+    monkeypatch.setattr(ex, "ROWS", rows)
+    res = run_extremes(ROOT, tmp_path)
+    assert [r.outcome for r in res] == ["passed", "not run"]
+    assert "stale" in res[1].message
+
+
+def _chromium():
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is not installed (scripts/install_system_deps.sh installs it)")
+        pytest.skip("chromium is not installed (make setup installs it)")
+    return exe
+
+
+def _browser(exe, *args, timeout=120):
+    return subprocess.run([exe, "--headless", "--no-sandbox", "--disable-gpu", "--proxy-server=127.0.0.1:9",
+                           "--no-first-run", "--disable-extensions", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_page_opens_offline_in_headless_chromium(outputs, tmp_path):
+    exe = _chromium()
+    _, data = outputs
+    page, _ = render(data)
+    index = tmp_path / "index.html"
+    index.write_text(page)
+    # the DOM after load, with a probe that records whether every image decoded (offline: the
+    # proxy refuses every request, so anything fetched from a network would fail)
+    probe = tmp_path / "probe.html"
+    probe.write_text(page.replace("</body>", "<script>window.onload=()=>{const ok=[...document.images].map("
+                                  "i=>i.complete&&i.naturalWidth>0);document.body.setAttribute('data-images',"
+                                  "ok.length+':'+ok.filter(Boolean).length)}</script></body>"))
+    dom = _browser(exe, "--virtual-time-budget=3000", "--dump-dom", probe.as_uri()).stdout
+    for key, _ in SECTIONS:
+        assert f'id="{key}"' in dom, key
+    n = re.search(r'data-images="(\d+):(\d+)"', dom)
+    assert n and int(n[1]) >= 3 and n[1] == n[2], n and n.groups()  # heat map, time and stage figures
+    shot = tmp_path / "shot.png"
+    _browser(exe, "--window-size=1280,2400", f"--screenshot={shot}", index.as_uri())
+    from PIL import Image
+
+    im = np.asarray(Image.open(shot).convert("L"), np.float64)
+    assert im.shape == (2400, 1280)
+    assert im.std() > 20 and (im < 128).mean() > 0.01  # text, tables and figures, not a blank page
