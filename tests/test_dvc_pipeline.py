@@ -55,8 +55,8 @@ def make_repo(tmp_path_factory, params: list[str], prepare=None):
         "PYTHONPATH": str(d),
     })
 
-    def run(*cmd, check=True):
-        r = subprocess.run(cmd, cwd=d, env=env, capture_output=True, text=True, timeout=900)
+    def run(*cmd, check=True, cwd=None):
+        r = subprocess.run(cmd, cwd=cwd or d, env=env, capture_output=True, text=True, timeout=900)
         if check and r.returncode != 0:
             raise AssertionError(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}\n{r.stderr}")
         return r
