@@ -115,6 +115,14 @@ def test_repro_builds_capture_then_does_nothing(repo):
     page = (d / "reports" / LAYOUT["report"]["index"]).read_text()
     assert '<section id="stability">' in page and "kitchen_tiny" in page
     assert "report.extremes = false" in (d / "reports" / LAYOUT["report"]["summary"]).read_text()
+    # every file a stage writes is a declared output: an undeclared one is not pushed to a remote,
+    # and a clone that pulls sees out/ differ and reruns every stage that depends on it
+    lock = yaml.safe_load((d / "dvc.lock").read_text())["stages"]
+    outs = {o["path"].rstrip("/") for st in lock.values() for o in st.get("outs", [])}
+    stray = [p.relative_to(d).as_posix() for p in (d / "out").rglob("*") if p.is_file()
+             and not any(p.relative_to(d).as_posix() == o or p.relative_to(d).as_posix().startswith(o + "/")
+                         for o in outs)]
+    assert not stray, stray
     abl = json.loads((d / "reports" / "ablation" / LAYOUT["report"]["table_json"]).read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
     assert (sp.appearance_dir("movable_gs_ste") / LAYOUT["appearance"]["model"] / "gaussians.ply").exists()

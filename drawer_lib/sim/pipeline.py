@@ -11,7 +11,9 @@ kinematics (``kinematic_dev_max_m``: the largest distance between a simulated po
 the joint puts it at the same q; ~0 unless the physics fights the joint), the parts that did
 not reach their upper limit or diverged, the simulated and wall time; then the interaction
 probes of :mod:`drawer_lib.sim.interact` (a cup in each drawer, a hand on each part, a block
-dropped on the counter: ``interactions.json``, ``<probe>_passed`` / ``_n`` and the worst value).
+dropped on the counter: ``motion.json``'s ``probes``, ``<probe>_passed`` / ``_n`` and the worst
+value). Every file it writes is a declared DVC output (an undeclared one is not pushed to a
+remote, and a clone that pulls then sees ``out/`` differ and reruns what depends on it).
 """
 
 import dataclasses
@@ -104,7 +106,6 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
         sim_s += tr.steps * m.opt.timestep
     wall = time.perf_counter() - t0
     np.savez_compressed(run.dir / "tracks.npz", **arrays)
-    write_json(run.dir / "motion.json", {"parts": per})
     if parts:
         devs = [v["kinematic_dev_m"] for v in per.values() if np.isfinite(v["kinematic_dev_m"])]
         out.update(kinematic_dev_max_m=max(devs) if devs else None,
@@ -113,16 +114,20 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
                    n_parts_diverged=sum(str(v["problem"]).startswith("diverged") for v in per.values()),
                    sim_time_s=round(sim_s, 4), drive_wall_s=round(wall, 4),
                    realtime_factor=round(sim_s / wall, 2) if wall > 0 else None)
+    probes: list[dict] = []
     if cfg.interactions and parts:
-        out.update(_interactions(xml, parts, run, option))
+        pm, probes = _interactions(xml, parts, run, option)
+        out.update(pm)
     elif parts:
         run.skip("interactions", "simulate.interactions = false")
+    write_json(run.dir / "motion.json", {"parts": per, "probes": probes})
     return out
 
 
-def _interactions(xml: Path, parts: list, run: StageRun, option: tuple[str, float] | None = None) -> dict:
+def _interactions(xml: Path, parts: list, run: StageRun, option: tuple[str, float] | None = None
+                  ) -> tuple[dict, list[dict]]:
     """The probes (module :mod:`drawer_lib.sim.interact`): a cup in every drawer, a hand on
-    every part, a block dropped on the counter; ``interactions.json`` and their metrics."""
+    every part, a block dropped on the counter; (their metrics, every probe as a dict)."""
     t0 = time.perf_counter()
     drawers = [p for p in parts if p.kind == "prismatic"
                and abs(np.asarray(p.axis.direction) @ np.asarray(p.front.normal)) > 0.8]
@@ -130,7 +135,6 @@ def _interactions(xml: Path, parts: list, run: StageRun, option: tuple[str, floa
               for p in run.progress(drawers, desc="cup in drawer", total=len(drawers))]
     probes += [pull_handle(xml, p, option=option) for p in run.progress(parts, desc="pull handle", total=len(parts))]
     probes.append(drop_on_counter(xml, parts, option=option))
-    write_json(run.dir / "interactions.json", {"probes": [dataclasses.asdict(x) for x in probes]})
     m: dict = {}
     for name, key, metric, agg in (("cup_rides_along", "error_m", "error_max_m", max),
                                    ("pull_handle", "peak_force_n", "peak_force_max_n", max),
@@ -144,4 +148,4 @@ def _interactions(xml: Path, parts: list, run: StageRun, option: tuple[str, floa
         m[f"{name}_n"] = len(ran)
         m[f"{name}_{metric}"] = float(agg([x.values[key] for x in ran]))
     m["interactions_wall_s"] = round(time.perf_counter() - t0, 3)
-    return m
+    return m, [dataclasses.asdict(x) for x in probes]
