@@ -6,8 +6,6 @@ import dataclasses
 import json
 import math
 
-import mujoco
-import numpy as np
 import pytest
 import sim_fixtures as F
 
