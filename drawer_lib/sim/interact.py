@@ -18,7 +18,7 @@ import numpy as np
 from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.parts import Part
 from drawer_lib.sim.checks import health
-from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, part_index
+from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, INTEGRATOR_ENUM, part_index
 
 PROBE = "probe"
 
@@ -40,7 +40,7 @@ def _spec(xml: Path, option: tuple[str, float] | None = None) -> mujoco.MjSpec:
     study's choice)."""
     spec = mujoco.MjSpec.from_file(str(xml))
     if option is not None:
-        spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{option[0].upper()}")
+        spec.option.integrator = INTEGRATOR_ENUM[option[0]]
         spec.option.timestep = float(option[1])
     return spec
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from drawer_lib.errors import InvariantError
+from drawer_lib.errors import InputError, InvariantError
 from drawer_lib.sim.files import obj_bytes, shortest, write_entries_atomic
 from drawer_lib.sim.model import MassProps, PartBody, Shape, SimConfig, TwinModel, axis_inertia
 
@@ -47,8 +47,9 @@ SCENE = "scene.xml"
 BIT_STATIC, BIT_PART, BIT_RIGID = 1, 2, 4
 GROUP_VISUAL, GROUP_COLLISION = 2, 3
 _MIN_MASS, _MIN_INERTIA = 1e-9, 1e-12  # kg, kg·m^2
-_INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-                "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
+# the integrators by their config names (``sim.integrator``, ``stability.integrators``)
+INTEGRATOR_ENUM = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+                   "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
 
 
 def contact_bits(cfg: SimConfig) -> dict[str, tuple[int, int]]:
@@ -129,7 +130,7 @@ def build_spec(model: TwinModel, cfg: SimConfig | None = None) -> mujoco.MjSpec:
     spec.compiler.boundinertia = _MIN_INERTIA
     spec.meshdir = MESHDIR
     spec.option.timestep = cfg.timestep
-    spec.option.integrator = _INTEGRATORS[cfg.integrator]
+    spec.option.integrator = INTEGRATOR_ENUM[cfg.integrator]
     spec.option.gravity = [0.0, 0.0, -cfg.gravity]
     assets: dict[str, bytes] = {}
     zero = np.zeros(3)
@@ -259,3 +260,17 @@ def part_index(m: mujoco.MjModel, pid: str) -> dict[str, int]:
 
 
 
+
+
+def load_twin(twin_dir: Path, parts_path: Path) -> tuple[Path, mujoco.MjModel]:
+    """(``scene.xml``, its compiled model) of a written twin, after checking that the twin and
+    the parts file it was built from exist; a missing or unloadable file is an
+    :class:`~drawer_lib.errors.InputError` naming it."""
+    xml = Path(twin_dir) / SCENE
+    for p, what in ((xml, "twin"), (Path(parts_path), "articulate")):
+        if not p.is_file():
+            raise InputError(f"{p}: missing (run the {what} stage first)")
+    try:
+        return xml, mujoco.MjModel.from_xml_path(str(xml))
+    except ValueError as e:
+        raise InputError(f"{xml}: MuJoCo cannot load it ({e})") from e

@@ -30,6 +30,7 @@ from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.motion import front_grid, kinematic_tracks
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.interact import cup_rides_along, drop_on_counter, pull_handle
+from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
 from drawer_lib.sim.simulate import drive_open
 from drawer_lib.sim.stability_stage import read_choice
 
@@ -59,22 +60,14 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
                  ) -> dict:
     """Drive every articulated part open (module doc); write ``tracks.npz`` and ``motion.json``.
     ``choice_path``: the stability study's ``choice.json`` (used when ``cfg.use_stability``)."""
-    xml = twin_dir / "scene.xml"
-    if not xml.is_file():
-        raise InputError(f"{xml}: missing (run the twin stage first)")
-    if not parts_path.is_file():
-        raise InputError(f"{parts_path}: missing (run the articulate stage first)")
-    try:
-        m = mujoco.MjModel.from_xml_path(str(xml))
-    except ValueError as e:
-        raise InputError(f"{xml}: MuJoCo cannot load it ({e})") from e
+    xml, m = load_twin(twin_dir, parts_path)
     option = None
     if cfg.use_stability:
         if choice_path is None or not Path(choice_path).is_file():
             raise InputError(f"{choice_path}: missing (run the stability stage, or set simulate.use_stability=false)")
         ch = read_choice(choice_path)
         option = (ch["integrator"], float(ch["timestep"]))
-        m.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{option[0].upper()}")
+        m.opt.integrator = INTEGRATOR_ENUM[option[0]]
         m.opt.timestep = option[1]
     parts = [p for p in read_parts(parts_path).parts if p.articulated]
     out: dict = {"n_parts": len(parts), "timestep": float(m.opt.timestep),

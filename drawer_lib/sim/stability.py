@@ -17,7 +17,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
+from drawer_lib.sim.mjcf import INTEGRATOR_ENUM
+
+INTEGRATORS = tuple(INTEGRATOR_ENUM)
 
 
 @dataclass(frozen=True)
@@ -53,7 +55,7 @@ class Hinge:
         spec = mujoco.MjSpec()
         spec.option.timestep = timestep
         spec.option.gravity = [0.0, 0.0, 0.0]
-        spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+        spec.option.integrator = INTEGRATOR_ENUM[integrator]
         b = spec.worldbody.add_body(name="link")
         b.explicitinertial = True
         b.mass = 1.0

@@ -17,6 +17,7 @@ cases) over ``integrators`` x ``timesteps`` and writes
 
 import copy
 import csv
+import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -30,7 +31,8 @@ from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import read_parts
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.stability import INTEGRATORS
-from drawer_lib.sim.study import _INT, Cell, choose, extreme_cases, reference_trace, remedy, run_cell, twin_case
+from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
+from drawer_lib.sim.study import Cell, choose, extreme_cases, reference_trace, remedy, run_cell, twin_case
 
 
 
@@ -68,7 +70,7 @@ def realtime_factor(m: mujoco.MjModel, integrator: str, timestep: float, duratio
     """Simulated / wall seconds of ``m`` at rest (controls 0, contacts as the model has them)
     stepped ``duration`` s with ``integrator`` and ``timestep``."""
     m = copy.copy(m)
-    m.opt.integrator, m.opt.timestep = _INT[integrator], timestep
+    m.opt.integrator, m.opt.timestep = INTEGRATOR_ENUM[integrator], timestep
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     n = max(1, int(round(duration / timestep)))
@@ -164,14 +166,7 @@ def heatmap(rows: list[dict], tolerance: float, path: Path, choice: tuple[str, f
 def run_stability(cfg: StabilityConfig, parts_path: Path, twin_dir: Path, twin_default: tuple[str, float],
                   run: StageRun) -> dict:
     """The stage (module doc); returns its metrics."""
-    xml = twin_dir / "scene.xml"
-    for p, what in ((xml, "twin"), (parts_path, "articulate")):
-        if not p.is_file():
-            raise InputError(f"{p}: missing (run the {what} stage first)")
-    try:
-        m = mujoco.MjModel.from_xml_path(str(xml))
-    except ValueError as e:
-        raise InputError(f"{xml}: MuJoCo cannot load it ({e})") from e
+    _, m = load_twin(twin_dir, parts_path)
     parts = [p for p in read_parts(parts_path).parts if p.articulated]
     cases = []
     if parts:
@@ -231,8 +226,6 @@ def run_stability(cfg: StabilityConfig, parts_path: Path, twin_dir: Path, twin_d
 
 def read_choice(path: Path) -> dict:
     """``choice.json`` of a stability run: at least ``integrator`` and ``timestep``."""
-    import json
-
     try:
         ch = json.loads(Path(path).read_text())
     except (OSError, ValueError) as e:

@@ -45,6 +45,7 @@ import mujoco
 import numpy as np
 
 from drawer_lib.errors import ConfigError, InputError
+from drawer_lib.sim.mjcf import INTEGRATOR_ENUM
 from drawer_lib.sim.stability import INTEGRATORS, Hinge
 
 REF_TIMESTEP = 1e-5
@@ -53,7 +54,6 @@ REF_TIMESTEP = 1e-5
 # damping and actuator kv alike, implicitly, so a servo of any gain stays stable), then
 # implicit (adds the Coriolis derivatives), Euler (damping only), RK4 (four evaluations a step).
 PREFERENCE = ("implicitfast", "implicit", "euler", "rk4")
-_INT = {k: getattr(mujoco.mjtIntegrator, f"mjINT_{k.upper()}") for k in INTEGRATORS}
 
 
 @dataclass
@@ -105,7 +105,7 @@ def _variant(case: Case, integrator: str, timestep: float, armature: float = 0.0
     if not (math.isfinite(timestep) and timestep > 0):
         raise ConfigError(f"stability: timestep {timestep} must be > 0")
     m = copy.copy(case.model)
-    m.opt.integrator = _INT[integrator]
+    m.opt.integrator = INTEGRATOR_ENUM[integrator]
     m.opt.timestep = timestep
     m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     m.dof_armature[:] += armature
