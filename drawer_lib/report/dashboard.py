@@ -451,3 +451,37 @@ def write_text_atomic(files: dict[Path, str]) -> None:
         tmps.append((tmp, p))
     for tmp, p in tmps:
         tmp.replace(p)
+
+
+def run_report(out: Path, reports: Path, scenes: list[str], geometry_variants: list[str],
+               appearance_variants: list[str], root: Path, extremes: bool = True,
+               extremes_timeout: float = 900.0) -> dict:
+    """The ``report`` stage: collect, run the numerical-extremes tests from the project
+    ``root`` (unless ``extremes`` is false), write ``index.html``, ``summary.md`` and
+    ``extremes.json`` (the report's metrics) into ``reports``; returns those metrics."""
+    import tempfile
+    import time
+
+    from drawer_lib.errors import InputError
+    from drawer_lib.io.images import write_json
+    from drawer_lib.report.extremes import as_dicts, run_extremes
+    from drawer_lib.runner import peak_rss_mb
+
+    t0 = time.perf_counter()
+    reports, out = Path(reports), Path(out)
+    why = None if extremes else "report.extremes = false"
+    data = collect(out, reports, scenes, geometry_variants, appearance_variants, None, why)
+    if not any(sc.metrics for sc in data.scenes):
+        raise InputError(f"report: no stage metrics under {out}/ for scenes {scenes} (run dvc repro first)")
+    if extremes:
+        with tempfile.TemporaryDirectory() as scratch:
+            data.extremes = as_dicts(run_extremes(root, Path(scratch), extremes_timeout))
+    rows = data.extremes or []
+    page, md = render(data)
+    write_text_atomic({reports / LAYOUT["report"]["index"]: page, reports / LAYOUT["report"]["summary"]: md})
+    metrics = {"extremes_passed": sum(r["outcome"] == "passed" for r in rows), "extremes_n": len(rows),
+               "n_skipped": len(data.skipped), "page_kb": round(len(page.encode()) / 1024, 1),
+               "wall_s": round(time.perf_counter() - t0, 3), "peak_rss_mb": round(peak_rss_mb(), 1)}
+    write_json(reports / LAYOUT["report"]["extremes"],
+               metrics | {"rows": rows, **({"skipped": {"extremes": why}} if why else {})})
+    return metrics
