@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions ste-regimes clean
+.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -68,8 +68,14 @@ fit-decisions: setup ## refit the type decision's weights on the train split (af
 	$(BIN)/python scripts/bench_articulation.py --split train --out $(BENCH_OUT) --reuse --articulate-only
 	$(BIN)/python scripts/bench_articulation.py --split test --out $(BENCH_OUT) --reuse --articulate-only
 
-ste-regimes: setup ## hard clip vs STE vs free 3DGS on kitchen_small: position lr sweep and five harder-bound regimes (needs `make run`; ~2 h)
-	$(BIN)/python scripts/ste_regimes.py
+STUDY ?= ste_official_lr ste_pos_lr_1.2e-3 ste_pos_lr_1.6e-2 ste_short ste_tight_bounds ste_no_densify ste_displaced_1cm ste_tsdf_anchor
+JOBS ?= 2
+study: setup ## queue each conf/experiment/<e>.yaml of STUDY (default: the STE study, ~2 h), run JOBS at a time, print the table
+	for e in $(STUDY); do PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp run --queue -n $$e -S experiment=$$e || exit 1; done
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue start -j $(JOBS)
+	while PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status | grep -qE 'Queued|Running'; do sleep 30; done
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp show --md --keep 'Experiment|study|reports/ablation' --drop '.*'
 
 bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro capture@kitchen_small

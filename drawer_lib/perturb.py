@@ -1,6 +1,6 @@
-"""Controlled geometric error for robustness ablations (``scripts/ste_regimes.py``): a smooth
-random displacement of a mesh along its vertex normals (a stand-in for the low-frequency bumps of
-a reconstructed surface). No pipeline stage uses it.
+"""Controlled geometric error for robustness ablations (``appearance.anchor_displacement``, the
+``ste_displaced_1cm`` experiment): a smooth random displacement of a mesh along its vertex
+normals (a stand-in for the low-frequency bumps of a reconstructed surface). Off by default.
 
 The field is a random Fourier feature approximation of a stationary Gaussian process with a
 squared-exponential kernel of length ``wavelength_m``:

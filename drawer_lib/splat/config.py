@@ -1,5 +1,6 @@
 """Config of the ``appearance`` stage (conf/appearance/<variant>.yaml). Lengths in metres."""
 
+import math
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
@@ -44,6 +45,24 @@ class LrConfig:
 
 
 @dataclass(frozen=True)
+class AnchorDisplacement:
+    """A controlled error of the anchor mesh for robustness studies (``drawer_lib.perturb``): its
+    vertices moved along their normals by a smooth random field of ``rms_m`` metres rms and
+    correlation length ``wavelength_m`` (seeded by ``seed``). ``rms_m = 0`` (the default) leaves
+    the mesh as the mesh stage made it."""
+
+    rms_m: float = 0.0
+    wavelength_m: float = 0.1
+    seed: int = 0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.rms_m) and self.rms_m >= 0):
+            raise ConfigError(f"appearance.anchor_displacement.rms_m = {self.rms_m} must be finite and >= 0")
+        if not (math.isfinite(self.wavelength_m) and self.wavelength_m > 0):
+            raise ConfigError(f"appearance.anchor_displacement.wavelength_m = {self.wavelength_m} must be > 0")
+
+
+@dataclass(frozen=True)
 class AppearanceConfig:
     """``variant``: textured_mesh | static_gs (positions frozen at the face centroids) |
     movable_gs (clips without STE) | movable_gs_ste (the paper's method) | free_gs
@@ -72,6 +91,8 @@ class AppearanceConfig:
     texture_source: str = "sdf"  # sdf: the neural field's colour at the surface (DRAWER's bake) | images
     backend: str = "cpu"  # cpu | gsplat (CUDA)
     tile: int = 16
+    train_scale: int = 1  # train on images downsampled by this integer factor (box filter); test views stay full size
+    anchor_displacement: AnchorDisplacement = field(default_factory=AnchorDisplacement)
 
     def __post_init__(self):
         if self.variant not in VARIANTS:
@@ -84,5 +105,7 @@ class AppearanceConfig:
             raise ConfigError(f"appearance.sh_degree = {self.sh_degree} must be in [0, 3]")
         if self.max_seconds is not None and not self.max_seconds > 0:
             raise ConfigError(f"appearance.max_seconds = {self.max_seconds} must be > 0 or null (no cap)")
+        if self.train_scale < 1:
+            raise ConfigError(f"appearance.train_scale = {self.train_scale} must be an integer >= 1")
         if self.steps < 1 or self.max_faces < 10:
             raise ConfigError("appearance: need steps >= 1 and max_faces >= 10")

@@ -9,6 +9,7 @@ from drawer_lib.errors import InputError, InvariantError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_rgb
 from drawer_lib.io.mesh import load_mesh
+from drawer_lib.perturb import displace_along_normals
 from drawer_lib.runner import StageRun
 from drawer_lib.splat.anchored import anchored_gaussians, bound_activity
 from drawer_lib.splat.config import AppearanceConfig
@@ -30,9 +31,14 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
     textured mesh bakes (``texture_source: sdf``)."""
     mesh = load_mesh(mesh_path, "run the mesh stage first")
     t0 = time.perf_counter()
+    m: dict = {"variant": cfg.variant}
+    disp = cfg.anchor_displacement
+    if disp.rms_m > 0:  # a robustness study: a controlled error of the anchor mesh
+        mesh, d = displace_along_normals(mesh, disp.rms_m, disp.wavelength_m, disp.seed)
+        m["anchor_displacement_rms_m"] = round(float(np.sqrt(np.mean(d ** 2))), 6)
     sc = prepare(cap, mesh, cfg)
     prep_s = time.perf_counter() - t0
-    m: dict = {"variant": cfg.variant, "mesh_faces": len(sc.mesh.faces), "prepare_s": round(prep_s, 3)}
+    m.update({"mesh_faces": len(sc.mesh.faces), "prepare_s": round(prep_s, 3), "train_scale": cfg.train_scale})
     model = run.out("model")
     model.mkdir()
     curve = run.curve(["test_psnr", "n_gaussians"])

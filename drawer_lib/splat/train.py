@@ -7,9 +7,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 import trimesh
+from jaxtyping import Float
 
-from drawer_lib.errors import InputError, NonFiniteError
-from drawer_lib.geometry.camera import Camera
+from drawer_lib.errors import ConfigError, InputError, NonFiniteError
+from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
@@ -46,20 +47,45 @@ class Scene:
     test_mesh_depth: np.ndarray
 
 
+def downscale_camera(cam: Camera, f: int) -> Camera:
+    """The camera of an image box-filtered by ``f`` x ``f`` (after cropping its right / bottom
+    to a multiple of ``f``): exact in the pixel-centre convention of :class:`Intrinsics`."""
+    if f == 1:
+        return cam
+    i = cam.intrinsics
+    return Camera(Intrinsics(i.fx / f, i.fy / f, i.cx / f, i.cy / f, i.width // f, i.height // f, i.dist), cam.w2c)
+
+
+def downscale_images(images: Float[torch.Tensor, "C H W 3"], f: int) -> Float[torch.Tensor, "C h w 3"]:
+    """Box filter by ``f`` x ``f``: [C, H, W, 3] -> [C, H // f, W // f, 3] (right / bottom
+    remainders cropped)."""
+    if f == 1:
+        return images
+    C, H, W, _ = images.shape
+    h, w = H // f, W // f
+    if h == 0 or w == 0:
+        raise ConfigError(f"appearance.train_scale = {f} is larger than the images ({W} x {H})")
+    return images[:, : h * f, : w * f].reshape(C, h, f, w, f, 3).mean((2, 4))
+
+
 def prepare(cap: Capture, mesh: trimesh.Trimesh, cfg: AppearanceConfig) -> Scene:
+    """Decimate the anchor mesh, load the train / test views (train views box-filtered by
+    ``cfg.train_scale``; test views always full size) and the mesh's depth in each."""
     if len(mesh.faces) == 0:
         raise InputError("appearance: the mesh is empty")
     if not cap.test:
         raise InputError(f"{cap.root / 'transforms.json'}: no test frames to evaluate on")
     m = decimate(mesh, cfg.max_faces)
     rc = Raycaster(np.asarray(m.vertices), np.asarray(m.faces))
-    it = cap.intrinsics
-    w_tr = np.stack([cap.frames[i].w2c for i in cap.train])
+    f = cfg.train_scale
+    train_cams = [downscale_camera(c, f) for c in cap.cameras(cap.train)]
+    w_tr = np.stack([c.w2c for c in train_cams])
     w_te = np.stack([cap.frames[i].w2c for i in cap.test])
-    return Scene(m, rc, cap.cameras(cap.train), cap.cameras(cap.test),
-                 to_tensor_images(np.stack([cap.image(i) for i in cap.train])),
+    train_rgb = downscale_images(to_tensor_images(np.stack([cap.image(i) for i in cap.train])), f)
+    return Scene(m, rc, train_cams, cap.cameras(cap.test), train_rgb,
                  to_tensor_images(np.stack([cap.image(i) for i in cap.test])),
-                 torch.from_numpy(mesh_depths(rc, it, w_tr)), mesh_depths(rc, it, w_te))
+                 torch.from_numpy(mesh_depths(rc, train_cams[0].intrinsics, w_tr)),
+                 mesh_depths(rc, cap.intrinsics, w_te))
 
 
 @dataclass
@@ -95,7 +121,7 @@ def textured_mesh(cap: Capture, sc: Scene, cfg: AppearanceConfig, field=None) ->
     t0 = time.perf_counter()
     fine = colored_mesh_at_resolution(sc.mesh, cfg.texture_cell)
     rc = Raycaster(np.asarray(fine.vertices), np.asarray(fine.faces))
-    it = cap.intrinsics
+    it = sc.train_cams[0].intrinsics  # the train views' (train_scale)
     cnt = np.ones(len(fine.faces))
     if cfg.texture_source == "sdf":
         if field is None:
@@ -107,7 +133,7 @@ def textured_mesh(cap: Capture, sc: Scene, cfg: AppearanceConfig, field=None) ->
         depth = mesh_depths(rc, it, w_tr)
         cols, cnt = face_colors(np.asarray(fine.triangles_center), sc.train_rgb.numpy(), it, w_tr, depth)
     bake_s = time.perf_counter() - t0
-    renders = torch.from_numpy(np.stack([render_face_colored(rc, cols, it, c.w2c, EVAL_BG)
+    renders = torch.from_numpy(np.stack([render_face_colored(rc, cols, c.intrinsics, c.w2c, EVAL_BG)
                                          for c in sc.test_cams]))
     info = {"texture_faces": len(fine.faces), "texture_cell_m": cfg.texture_cell, "texture_source": cfg.texture_source,
             "faces_unseen": int((cnt == 0).sum()), "bake_s": round(bake_s, 3)}
@@ -154,7 +180,7 @@ def train_gaussians(cap: Capture, sc: Scene, cfg: AppearanceConfig, seed: int, p
     frames = face_frames(V, Fc)
     if frames.A.shape[0] == 0:
         raise InputError("appearance: the mesh has no face with a non-zero area")
-    it = cap.intrinsics
+    it = sc.train_cams[0].intrinsics
     w_tr = np.stack([c.w2c for c in sc.train_cams])
     cols, _ = face_colors(frames.centroid.double().numpy(), sc.train_rgb.numpy(), it, w_tr, sc.train_mesh_depth.numpy())
     p = init_anchored(frames, torch.tensor(cols, dtype=torch.float32), cfg.sh_degree, cfg.init_opacity)

@@ -69,3 +69,21 @@ def test_missing_mesh_is_named(tmp_path, exact_capture):
     assert r.returncode == 2 and "mesh.ply" in r.stderr
     assert not (tmp_path / "out" / "kitchen_tiny" / "appearance").exists() or not any(
         (tmp_path / "out" / "kitchen_tiny" / "appearance").iterdir())
+
+
+def test_train_scale_and_anchor_displacement(project, tmp_path):
+    """Training on half-size images still evaluates at full size; a displaced anchor reports its
+    displacement; the two agree with the full-size, undisplaced run only in kind."""
+    out = tmp_path / "scaled"
+    shutil.copytree(project / "out", out / "out")
+    r = run("appearance", out, "appearance_variant=movable_gs_ste", "appearance.train_scale=2",
+            "appearance.anchor_displacement.rms_m=0.01")
+    assert r.returncode == 0, r.stderr[-3000:]
+    d = scene_paths(out).appearance_dir("movable_gs_ste")
+    m = json.loads((d / LAYOUT["metrics"]).read_text())
+    assert m["train_scale"] == 2 and 0.005 < m["anchor_displacement_rms_m"] < 0.02
+    assert m["within_face_bounds"] is True and 5 < m["psnr"] < 60
+    full = json.loads((project / "out/kitchen_tiny/capture" / capture_name("transforms")).read_text())
+    from drawer_lib.io.images import read_rgb
+    render = read_rgb(next((d / LAYOUT["appearance"]["renders"]).glob("*.png")))
+    assert render.shape[:2] == (full["h"], full["w"])
