@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 import sys
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -16,6 +17,8 @@ from helpers import ROOT
 
 from drawer_lib.paths import LAYOUT, ScenePaths
 from drawer_lib.report.dashboard import SECTIONS, collect, render
+from drawer_lib.report.pareto import DIR as PARETO_DIR
+from drawer_lib.report.pareto import LOWER_IS_BETTER, Point, pareto_front
 from drawer_lib.report.extremes import ROWS, _junit, run_extremes
 from drawer_lib.sim.stability_stage import heatmap, write_matrix
 
@@ -63,6 +66,14 @@ def outputs(tmp_path_factory):
                          "remedy": {"armature": 0.1, "damping": 10.0}}]})
     _write(reports / "geometry" / LAYOUT["report"]["table_json"],
            {SCENE: {"neural (selected)": {"chamfer_l1": 0.0042, "fscore_1cm": 0.8, "fscore_2cm": 0.91}}})
+    pts = [Point("geometry", "neural", 325, 0.03, 80.0, 6.0), Point("geometry", "neural", 1300, 0.015, 300.0, 3.5),
+           Point("appearance", "static_gs", 375, 2, 50.0, 35.0)]
+    pdir = sp.root / PARETO_DIR
+    pdir.mkdir()
+    _write(pdir / LAYOUT["report"]["table_json"],
+           {"points": [asdict(p) for p in pts], "config": {"budgets_s": [120.0, 600.0]},
+            "fronts": {f: [asdict(p) for p in pareto_front([q for q in pts if q.family == f], LOWER_IS_BETTER[f])]
+                       for f in LOWER_IS_BETTER}})
     extremes = [{"extreme": "SDF density at β = 1e-5", "expect": "finite", "test": ROWS[0][2], "outcome": "passed",
                  "seconds": 0.01, "message": None}]
     data = collect(out, reports, [SCENE, "never_ran"], [], ["static_gs"], extremes)
@@ -89,6 +100,10 @@ def test_render_has_every_section_and_the_paper_columns(outputs):
     assert "2.5e-05" in md and "1.41e-05" in md  # our EMD next to the paper's
     assert "stiff_joint" in md and "0.1" in md  # the extreme outside the choice, with its remedy
     assert "skipped: reports/ablation/table.json is missing" in md
+    # the swept grid: with 2 min the 325-step SDF (80 s), with 10 min the 1300-step one
+    assert "| geometry | 2 min | neural 325 steps, 30 mm | 80.0 | 6 Chamfer-L1 (mm) |" in md
+    assert "| geometry | 10 min | neural 1300 steps, 15 mm | 300.0 | 3.5 Chamfer-L1 (mm) |" in md
+    assert "never_ran: no swept grid" in md
     assert "http://" not in page and "https://" not in page and "<script" not in page  # nothing to fetch
 
 

@@ -7,7 +7,8 @@ Sections (each an ``<section id=...>`` the browser test looks for): ``headline``
 (Tab. 4: precision / recall / EA-score); ``motion`` (Tab. 5: motion EMD, and the simulation's
 own figures and interaction probes); ``opened`` (opened-state NVS); ``stability`` (heat map,
 choice, the extremes it does not handle); ``time`` (every iterative stage's error against wall
-time: SDF Chamfer, appearance PSNR, the stability matrix); ``stages`` (per-stage wall time and
+time: SDF Chamfer, appearance PSNR, the stability matrix; and the swept grid's Pareto fronts
+with the best setting per budget, when the ``pareto`` stage ran); ``stages`` (per-stage wall time and
 peak memory); ``extremes`` (the numerical-extremes tests, run now); ``skipped`` (everything
 skipped, with its reason).
 
@@ -28,6 +29,7 @@ import numpy as np
 from drawer_lib.paths import LAYOUT, ScenePaths
 from drawer_lib.report.ablation import PAPER as PAPER_TAB3
 from drawer_lib.report.geometry_table import read_curve
+from drawer_lib.report.pareto import DIR as PARETO_DIR
 
 PAPER_TAB4 = {"precision": 0.972, "recall": 0.840}  # 105/108, 105/125
 PAPER_TAB5_EMD = 1.41e-5
@@ -56,6 +58,8 @@ class SceneData:
     choice: dict | None
     heatmap: Path | None
     sheet: Path | None
+    pareto: dict | None = None  # out/<scene>/pareto/table.json (the `pareto` experiment)
+    pareto_plot: Path | None = None
 
 
 @dataclass
@@ -107,8 +111,11 @@ def collect(out: Path, reports: Path, scenes: list[str], geometry_variants: list
         rows = read_matrix(mpath) if mpath.is_file() else []
         hm = sp.file("stability", "heatmap")
         sheet = sp.stage_dir("twin") / "renders" / "contact_sheet.png"
+        pdir = sp.root / PARETO_DIR
+        pplot = pdir / LAYOUT["report"]["plot"]
         data.scenes.append(SceneData(s, mets, curves, rows, _json(sp.file("stability", "choice")),
-                                     hm if hm.is_file() else None, sheet if sheet.is_file() else None))
+                                     hm if hm.is_file() else None, sheet if sheet.is_file() else None,
+                                     _json(pdir / LAYOUT["report"]["table_json"]), pplot if pplot.is_file() else None))
     return data
 
 
@@ -344,6 +351,21 @@ def _stability(sc: SceneData) -> tuple[str, Table]:
     return text, t
 
 
+def _pareto(sc: SceneData) -> Table:
+    """The swept grid's answer: per family and budget, the best setting that fits."""
+    from drawer_lib.report.pareto import ERROR_NAME, Point, pick
+
+    t = Table(["family", "budget", "pick", "wall (s)", "error"], [])
+    cfg = sc.pareto["config"]
+    for fam, front in sc.pareto["fronts"].items():
+        pts = [Point(**p) for p in front]
+        for b in cfg["budgets_s"]:
+            p = pick(pts, b)
+            t.rows.append([fam, f"{b / 60:g} min", p.label if p else "nothing fits", _f(p and p.wall_s, ".1f"),
+                           f"{_f(p and p.error, '.4g')} {ERROR_NAME[fam]}"])
+    return t
+
+
 def _stages(data: ReportData) -> Table:
     t = Table(["scene", "stage", "wall (s)", "peak memory (MiB)"], [])
     for sc in data.scenes:
@@ -424,6 +446,14 @@ def render(data: ReportData) -> tuple[str, str]:
     tf = time_figure(data)
     add("time", text=None if tf else "skipped: no curve or stability matrix found", img=tf,
         alt="error against wall time")
+    for sc in data.scenes:
+        if sc.pareto is None:
+            add("time", text=f"{sc.name}: no swept grid (dvc exp run -S experiment=pareto runs it)")
+            continue
+        add("time", _pareto(sc), f"{sc.name}: the swept grid (iterations x resolution x variant, "
+            f"{len(sc.pareto['points'])} jobs); the best setting on each Pareto front within each budget.")
+        if sc.pareto_plot is not None:
+            add("time", img=_file_png(sc.pareto_plot), alt=f"{sc.name}: error against wall time, swept")
     add("stages", _stages(data), img=stages_figure(data), alt="per-stage wall time")
     add("extremes", _extremes(data), None if data.extremes is not None else "skipped: see below")
     add("skipped", Table(["scene", "what", "why"], [list(r) for r in data.skipped]))

@@ -11,6 +11,7 @@ drawer_lib.report.sweep <sweep dir>`` does the same by hand.
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -120,6 +121,38 @@ def write_sweep(sweep_dir: Path) -> list[dict]:
     (sweep_dir / "sweep.md").write_text(sweep_markdown(rows))
     sweep_plot(rows, sweep_dir / "sweep.png")
     return rows
+
+
+def sweep_threads(launcher, cpu_count: int | None = None) -> int | None:
+    """Threads for one job of a multirun whose ``launcher`` config runs ``n_jobs`` jobs side by
+    side on this machine (joblib): ``cpu_count // n_jobs``, at least 1. None for a launcher
+    without ``n_jobs`` (basic: one job at a time; submitit / SLURM: ``cpus_per_task``)."""
+    n_jobs = launcher.get("n_jobs") if launcher is not None else None
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs < 1:
+        return None
+    return max(1, (cpu_count or os.cpu_count() or 1) // n_jobs)
+
+
+class CapThreads(Callback):
+    """Hydra callback: in each job of a local parallel multirun, cap torch and numba threads to
+    :func:`sweep_threads` so ``n_jobs`` jobs do not oversubscribe the cores (runs in the job's
+    own process, before the stage)."""
+
+    def on_job_start(self, config, **kwargs) -> None:
+        from hydra.core.hydra_config import HydraConfig
+        from hydra.types import RunMode
+
+        hc = HydraConfig.get() if HydraConfig.initialized() else None
+        if hc is None or hc.mode != RunMode.MULTIRUN:
+            return
+        n = sweep_threads(hc.get("launcher"))
+        if n is None:
+            return
+        import numba
+        import torch
+
+        torch.set_num_threads(n)
+        numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
 
 
 class CollectSweep(Callback):
