@@ -5,9 +5,12 @@ three ways on the same code and params, with metrics and wall times side by side
 1. ``dvc repro``: the ``appearance`` matrix's four stages, one after the other (forced, so they
    run rather than come from the run-cache);
 2. ``dvc exp run --queue`` with 2 workers: one experiment per variant (forced single stage),
-   ``dvc queue start -j 2``, metrics from ``dvc exp show --json``;
+   ``OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 dvc queue start -j 2`` (``queue_uncapped``: without
+   the thread caps, the workers oversubscribe the cores), metrics from ``dvc exp show --json``;
 3. a Hydra multirun of the stage app on the joblib launcher (``hydra/launcher=local``: 2
-   processes, 1 thread each), metrics from the sweep's job folders.
+   processes, 1 thread each), metrics from the sweep's job folders; ``hydra_joblib_uncapped``:
+   the same with 2 threads per job, as the other two ways run (the thread count changes the
+   order of float sums, so only equal thread counts give bit-identical numbers).
 
 Needs a committed, clean workspace whose upstream stages are built (``make run``); the first
 way rewrites the workspace's appearance outputs with the same values. Prints a markdown table
@@ -31,9 +34,9 @@ VARIANTS = ("textured_mesh", "static_gs", "movable_gs", "movable_gs_ste")
 KEYS = ("psnr", "ssim", "lpips", "n_gaussians", "train_s", "wall_s")
 
 
-def sh(cmd: list[str], log: Path) -> float:
+def sh(cmd: list[str], log: Path, extra_env: dict | None = None) -> float:
     """Run ``cmd`` in the project (its .venv first on PATH), output to ``log``; wall seconds."""
-    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"}
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}", **(extra_env or {})}
     t0 = time.perf_counter()
     with log.open("a") as f:
         f.write(f"$ {' '.join(cmd)}\n")
@@ -55,13 +58,19 @@ def way_repro(scene: str, log: Path) -> tuple[float, dict]:
                   for v in VARIANTS}
 
 
-def way_queue(scene: str, log: Path, jobs: int) -> tuple[float, dict]:
+THREAD_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def way_queue(scene: str, log: Path, jobs: int, threads: int | None) -> tuple[float, dict]:
+    """``threads``: the torch / numba threads of each worker's stage (the workers inherit the
+    environment of ``dvc queue start``); None leaves the default (every core, per worker)."""
     names = {v: f"abl3-{v}-{int(time.time())}" for v in VARIANTS}
     t0 = time.perf_counter()
     for v in VARIANTS:
         sh([sys.executable, "-m", "dvc", "exp", "run", "--queue", "-f", "-s", "-n", names[v],
             f"appearance@{scene}-{v}"], log)
-    sh([sys.executable, "-m", "dvc", "queue", "start", "-j", str(jobs)], log)
+    env = {k: str(threads) for k in THREAD_ENV} if threads else {}
+    sh([sys.executable, "-m", "dvc", "queue", "start", "-j", str(jobs)], log, env)
     while True:
         st = subprocess.run([sys.executable, "-m", "dvc", "queue", "status"], cwd=ROOT, capture_output=True, text=True)
         if not any(w in st.stdout for w in ("Queued", "Running")):
@@ -87,12 +96,14 @@ def way_queue(scene: str, log: Path, jobs: int) -> tuple[float, dict]:
     return wall, out
 
 
-def way_hydra(scene: str, log: Path, sweep: Path) -> tuple[float, dict]:
+def way_hydra(scene: str, log: Path, sweep: Path, cap: bool = True) -> tuple[float, dict]:
+    """``cap``: each job gets cores // n_jobs threads (CapThreads, as conf/config.yaml sets it);
+    without it, each job keeps every core's thread, as a single run does."""
+    cap_cb = ["++hydra.callbacks.cap_threads._target_=drawer_lib.report.sweep.CapThreads"] if cap else []
     wall = sh([sys.executable, "-m", "stages.appearance", "-cn", "dvc_stage", "-m", f"scene={scene}",
                f"appearance_variant={','.join(VARIANTS)}", "hydra/launcher=local", f"hydra.sweep.dir={sweep}",
-               "hydra.sweep.subdir=${appearance_variant}",
-               "++hydra.callbacks.cap_threads._target_=drawer_lib.report.sweep.CapThreads"], log)
-    return wall, {v: _pick(json.loads((sweep / v / scene / "appearance" / v / "metrics.json").read_text()))
+               "hydra.sweep.subdir=${hydra.job.num}", *cap_cb], log)
+    return wall, {v: _pick(json.loads(next(sweep.glob(f"*/{scene}/appearance/{v}/metrics.json")).read_text()))
                   for v in VARIANTS}
 
 
@@ -124,25 +135,32 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/ablation_three_ways"))
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--ways", default="repro,hydra_joblib,queue")
+    ap.add_argument("--reuse", action="store_true", help="keep the ways already in <out>/results.json")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     log = a.out / "log.txt"
+    saved = a.out / "results.json"
     res = {}
+    if a.reuse and saved.is_file():
+        res = {w: (r["wall_s"], r["metrics"]) for w, r in json.loads(saved.read_text()).items()}
     for w in a.ways.split(","):
         print(f"{w} ...", flush=True)
         if w == "repro":
             res["dvc repro"] = way_repro(a.scene, log)
         elif w == "queue":
-            res[f"dvc queue -j {a.jobs}"] = way_queue(a.scene, log, a.jobs)
+            res[f"dvc queue -j {a.jobs}, 1 thread each"] = way_queue(a.scene, log, a.jobs, 1)
+        elif w == "queue_uncapped":
+            res[f"dvc queue -j {a.jobs}, default threads"] = way_queue(a.scene, log, a.jobs, None)
         elif w == "hydra_joblib":
             res["Hydra joblib"] = way_hydra(a.scene, log, a.out / f"sweep_{int(time.time())}")
+        elif w == "hydra_joblib_uncapped":
+            res["Hydra joblib, 2 threads per job"] = way_hydra(a.scene, log, a.out / f"sweep_{int(time.time())}", False)
         else:
-            raise SystemExit(f"error: unknown way {w!r}; choose from repro, queue, hydra_joblib")
+            raise SystemExit(f"error: unknown way {w!r}; choose from repro, queue, queue_uncapped, hydra_joblib, hydra_joblib_uncapped")
         print(f"  {list(res.values())[-1][0]:.0f} s", flush=True)
+        saved.write_text(json.dumps({w: {"wall_s": r[0], "metrics": r[1]} for w, r in res.items()}, indent=1))
     text = table(res)
     (a.out / "table.md").write_text(text)
-    (a.out / "results.json").write_text(json.dumps({w: {"wall_s": r[0], "metrics": r[1]} for w, r in res.items()},
-                                                   indent=1))
     print(text)
 
 
