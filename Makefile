@@ -75,7 +75,7 @@ study: setup ## queue each conf/experiment/<e>.yaml of STUDY (default: the STE s
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue start -j $(JOBS)
 	while PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status | grep -qE 'Queued|Running'; do sleep 30; done
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status
-	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp show --md --keep 'Experiment|study|reports/ablation' --drop '.*'
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp show --md --drop '.*' --keep 'Experiment|study|\.(psnr|ssim|lpips)$$'
 
 bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro capture@kitchen_small
