@@ -105,9 +105,11 @@ def test_stage_runs_the_grid_on_joblib(tmp_path, exact_capture):
     assert all(np.isfinite(p["error"]) and p["wall_s"] > 0 for p in t["points"])
     assert (d / LAYOUT["report"]["plot"]).stat().st_size > 10_000
     assert "Pareto" in (d / LAYOUT["report"]["table"]).read_text()
-    sweep = json.loads((d / "jobs" / "neural" / "sweep.json").read_text())  # each family's sweep table
+    sweep = t["jobs"]["neural"]  # each family's sweep rows: overrides and metrics of every job
     assert sorted(row["overrides"]["sdf.neural.steps"] for row in sweep) == ["12", "6"]
     assert all("appearance.max_faces" not in row["job"] for row in sweep)  # folders named by the axes only
+    assert sorted(p.name for p in d.iterdir()) == sorted([LAYOUT["metrics"], *(LAYOUT["report"][k] for k in (
+        "table", "table_json", "plot"))])  # the jobs' folders are gone: only the declared outputs remain
 
 
 def test_sweep_threads():

@@ -27,7 +27,7 @@ from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.report.sweep import collect_sweep
 
 DIR = "pareto"  # the stage's folder: out/<scene>/pareto/
-JOBS = "jobs"  # the multiruns' job folders, inside it
+JOBS = "jobs"  # the multiruns' job folders, inside it while the stage runs
 
 
 def _positive(name: str, values, integer: bool = False) -> tuple:
@@ -274,9 +274,13 @@ def plot(pts: list[Point], budgets_s: list[float], path: Path) -> None:
 
 def run_grid(cfg: ParetoConfig, scene: str, out_dir: Path, config_name: str = "dvc_stage",
              paths_out: str | None = None, log=print) -> dict:
-    """The ``pareto`` stage: run each family's multirun into ``out_dir/jobs/``, then write
-    ``table.md``, ``table.json`` (every point and front) and ``curves.png`` into ``out_dir``;
-    returns the metrics (the pick per budget). A failed multirun raises with its last lines."""
+    """The ``pareto`` stage: run each family's multirun into ``out_dir/jobs/`` (removed at the
+    end: the jobs' models and renders are not kept), then write ``table.md``, ``table.json``
+    (every job's overrides and metrics, every point and front) and ``curves.png`` into
+    ``out_dir``; returns the metrics (the pick per budget). A failed multirun raises with its
+    last lines."""
+    import shutil
+
     from drawer_lib.paths import LAYOUT
 
     jobs = Path(out_dir) / JOBS
@@ -288,12 +292,14 @@ def run_grid(cfg: ParetoConfig, scene: str, out_dir: Path, config_name: str = "d
     pts = points(jobs, scene)
     if not pts:
         raise InputError(f"pareto: no job under {jobs} wrote the metrics it needs")
+    rows = {d.name: collect_sweep(d) for d in sorted(jobs.iterdir()) if d.is_dir()}
     md, metrics = table_md(pts, cfg.budgets_s)
     rep = LAYOUT["report"]
     (Path(out_dir) / rep["table"]).write_text(f"# Error against wall time, {scene}\n\n{md}")
     fronts = {f: [asdict(p) for p in pareto_front([p for p in pts if p.family == f], LOWER_IS_BETTER[f])]
               for f in LOWER_IS_BETTER}
     (Path(out_dir) / rep["table_json"]).write_text(json.dumps({"points": [asdict(p) for p in pts], "fronts": fronts,
-                                                               "config": asdict(cfg)}, indent=1))
+                                                               "jobs": rows, "config": asdict(cfg)}, indent=1))
     plot(pts, cfg.budgets_s, Path(out_dir) / rep["plot"])
+    shutil.rmtree(jobs)
     return metrics
