@@ -70,8 +70,10 @@ fit-decisions: setup ## refit the type decision's weights on the train split (af
 
 STUDY ?= ste_official_lr ste_pos_lr_1.2e-3 ste_pos_lr_1.6e-2 ste_short ste_tight_bounds ste_no_densify ste_displaced_1cm ste_tsdf_anchor
 JOBS ?= 2
-study: setup ## queue each conf/experiment/<e>.yaml of STUDY (default: the STE study, ~2 h), run JOBS at a time, print the table
+study: setup ## queue each conf/experiment/<e>.yaml of STUDY (default: the STE study, ~2 h), run JOBS at a time (cores / JOBS threads each), print the table
 	for e in $(STUDY); do PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp run --queue -n $$e -S experiment=$$e || exit 1; done
+	# each worker gets cores / JOBS threads: uncapped, 2 workers on 2 cores ran at a third of the throughput (docs/sweeps.md)
+	T=$$(( $$(nproc) / $(JOBS) > 0 ? $$(nproc) / $(JOBS) : 1 )); OMP_NUM_THREADS=$$T MKL_NUM_THREADS=$$T NUMBA_NUM_THREADS=$$T \
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue start -j $(JOBS)
 	while PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status | grep -qE 'Queued|Running'; do sleep 30; done
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status

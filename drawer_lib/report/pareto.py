@@ -156,13 +156,17 @@ LOWER_IS_BETTER = {"geometry": True, "appearance": False}
 ERROR_NAME = {"geometry": "Chamfer-L1 (mm)", "appearance": "test PSNR (dB)"}
 
 
-def points(jobs_dir: Path, scene: str) -> list[Point]:
-    """Every finished job under ``jobs_dir/<family>/`` as a :class:`Point` (a job without the
-    metrics it needs is left out)."""
+def sweep_rows(jobs_dir: Path) -> dict[str, list[dict]]:
+    """Each family folder under ``jobs_dir`` -> its jobs' rows (:func:`collect_sweep`)."""
+    return {d.name: collect_sweep(d) for d in sorted(Path(jobs_dir).iterdir()) if d.is_dir()}
+
+
+def points(rows: dict[str, list[dict]], scene: str) -> list[Point]:
+    """Every finished job of :func:`sweep_rows` as a :class:`Point` (a job without the metrics
+    it needs is left out)."""
     pts = []
-    for family_dir in sorted(p for p in Path(jobs_dir).iterdir() if p.is_dir()):
-        fam = family_dir.name
-        for row in collect_sweep(family_dir):
+    for fam, fam_rows in rows.items():
+        for row in fam_rows:
             o, m = row["overrides"], row["metrics"]
             if fam in ("neural", "tsdf"):
                 key = f"{scene}/sdf:"
@@ -236,8 +240,8 @@ def _n(v) -> str:
 
 
 def plot(pts: list[Point], budgets_s: list[float], path: Path) -> None:
-    """Error against wall time, one panel per family: every job (marker: variant; filled: the
-    largest resolution), the front as a step line, the budgets as dashed lines."""
+    """Error against wall time, one panel per family: every job (marker: variant; label:
+    steps / resolution), the front as a step line, the budgets as dashed lines."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -289,10 +293,10 @@ def run_grid(cfg: ParetoConfig, scene: str, out_dir: Path, config_name: str = "d
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0:
             raise InputError(f"pareto: the {fam} multirun failed (exit {r.returncode}):\n{r.stderr[-3000:]}")
-    pts = points(jobs, scene)
+    rows = sweep_rows(jobs)
+    pts = points(rows, scene)
     if not pts:
         raise InputError(f"pareto: no job under {jobs} wrote the metrics it needs")
-    rows = {d.name: collect_sweep(d) for d in sorted(jobs.iterdir()) if d.is_dir()}
     md, metrics = table_md(pts, cfg.budgets_s)
     rep = LAYOUT["report"]
     (Path(out_dir) / rep["table"]).write_text(f"# Error against wall time, {scene}\n\n{md}")
