@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study clean
+.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study view bench-viewer clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -70,14 +70,28 @@ fit-decisions: setup ## refit the type decision's weights on the train split (af
 
 STUDY ?= ste_official_lr ste_pos_lr_1.2e-3 ste_pos_lr_1.6e-2 ste_short ste_tight_bounds ste_no_densify ste_displaced_1cm ste_tsdf_anchor
 JOBS ?= 2
-study: setup ## queue each conf/experiment/<e>.yaml of STUDY (default: the STE study, ~2 h), run JOBS at a time (cores / JOBS threads each), print the table
-	for e in $(STUDY); do PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp run --queue -n $$e -S experiment=$$e || exit 1; done
+# the stages a study reruns (and what they need upstream): its tables are the appearance metrics,
+# so the twin, simulation and report downstream of the appearance Gaussians are left alone
+STUDY_TARGETS ?= appearance
+study: setup ## queue each conf/experiment/<e>.yaml of STUDY (default: the STE study) for STUDY_TARGETS, run JOBS at a time (cores / JOBS threads each), print the table
+	for e in $(STUDY); do PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp run --queue -n $$e -S experiment=$$e $(STUDY_TARGETS) || exit 1; done
 	# each worker gets cores / JOBS threads: uncapped, 2 workers on 2 cores ran at a third of the throughput (docs/sweeps.md)
 	T=$$(( $$(nproc) / $(JOBS) > 0 ? $$(nproc) / $(JOBS) : 1 )); OMP_NUM_THREADS=$$T MKL_NUM_THREADS=$$T NUMBA_NUM_THREADS=$$T \
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue start -j $(JOBS)
 	while PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status | grep -qE 'Queued|Running'; do sleep 30; done
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc queue status
-	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp show --md --drop '.*' --keep 'Experiment|study|\.(psnr|ssim|lpips)$$'
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc exp show --md --hide-queued --drop '.*' --keep 'Experiment|.*study$$|.*appearance/.*:(psnr|ssim|lpips)$$' | sed -E 's#out/[^/]+/appearance/##g; s#/metrics.json##g; s#  +# #g'
+	# (dvc matches --keep / --drop from the start of a column's name: <metrics file>:<key>)
+
+SCENE ?= kitchen_small
+PORT ?= 8080
+view: setup ## open out/$(SCENE)/twin in the browser viewer (builds the twin first if needed; Ctrl-C stops it)
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro twin@$(SCENE)
+	$(BIN)/python -m drawer_lib.viewer out/$(SCENE)/twin --port $(PORT)
+
+bench-viewer: setup ## the viewer's load time, as it is and with 3x its static Gaussians (and the README screenshot)
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro twin@$(SCENE)
+	$(BIN)/python scripts/bench_viewer.py out/$(SCENE)/twin --replicate 1 3
 
 bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono calibration) on kitchen_small
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro capture@kitchen_small

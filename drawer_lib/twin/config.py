@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.sim.model import SimConfig
+from drawer_lib.viewer.config import RecordConfig
 
 
 @dataclass(frozen=True)
@@ -33,8 +34,10 @@ class RendersConfig:
 @dataclass(frozen=True)
 class TwinConfig:
     """``check``: run the physical checks before writing (a failing check is an error naming the
-    part); ``renders``: the opened-state renders; ``sim``: the MuJoCo model."""
+    part); ``renders``: the opened-state renders; ``sim``: the MuJoCo model; ``recording``: the
+    shareable browser recording of every part opened in turn (``open_parts.html``)."""
 
     check: bool = True
     sim: SimConfig = field(default_factory=SimConfig)
     renders: RendersConfig = field(default_factory=RendersConfig)
+    recording: RecordConfig = field(default_factory=RecordConfig)

@@ -9,14 +9,16 @@ DESIGN §5b.
    check_twin`) — a failing check is an error naming the part;
 3. ``urdf/scene.urdf`` and ``scene.usda``;
 4. ``gaussians/static.ply`` and ``gaussians/<id>.ply`` (INRIA layout, world frame at q = 0) and
-   ``visual.glb`` (the visual meshes, one node per body);
+   ``visual.glb`` (the visual meshes, one node per body); ``twin.json`` (bodies, their
+   Gaussians and collision shapes; a collision mesh's PLY is copied to ``collision/``);
+   ``open_parts.html`` / ``.viser``: every part opened in turn, a self-contained page to share
+   (:mod:`drawer_lib.viewer.record`; ``recording.enabled``);
 5. ``renders/<id>/<stem>.png`` + ``renders/index.json``: the twin's Gaussians in every test view
    with part ``<id>`` opened to ``renders.open_fraction`` of its range, every other part closed;
 6. on a synthetic scene, the opened-state scores against the scene's own model posed with the
    matched GT part at the same q (``open_psnr``, ``open_ssim``, ``open_lpips``,
    ``open_region_psnr``; DESIGN §6), the closed twin's scores against the capture's test
-   images (``closed_psnr`` ...), and ``renders/contact_sheet.png`` (GT | twin, a row per part);
-7. ``twin.json``.
+   images (``closed_psnr`` ...), and ``renders/contact_sheet.png`` (GT | twin, a row per part).
 """
 
 import drawer_lib.synth.gl  # noqa: F401, I001  (before mujoco: the opened-state reference renders offscreen)
@@ -48,6 +50,7 @@ from drawer_lib.synth.config import RenderConfig
 from drawer_lib.twin.config import TwinConfig
 from drawer_lib.twin.gaussians import concat, load_gaussian_ply
 from drawer_lib.twin.renders import opened_q, region_psnr, render_opened
+from drawer_lib.viewer.record import record_twin
 
 SCHEMA = "drawer.twin/1"
 
@@ -76,6 +79,17 @@ def _score(pred: list[torch.Tensor], gt: list[torch.Tensor], regions: list[np.nd
     if regions is not None:
         out["region_psnr"] = [region_psnr(p, g, m) for p, g, m in zip(pred, gt, regions)]
     return out
+
+
+def _collision_files(entries: list[dict], complete_dir: Path, out: Path) -> list[dict]:
+    """A body's collision shapes as ``twin.json`` lists them, world frame at q = 0: boxes as they
+    are, a mesh's PLY copied from ``complete/`` to the same relative path under ``twin/`` (every
+    file twin.json names lives in the twin folder)."""
+    for e in entries:
+        if e.get("file"):
+            (out / e["file"]).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(complete_dir / e["file"], out / e["file"])
+    return entries
 
 
 def _tile(img: np.ndarray, width: int) -> np.ndarray:
@@ -134,16 +148,25 @@ def run_twin(cfg: TwinConfig, cap: Capture, parts_path: Path, complete_dir: Path
     bodies = {p.id: gauss.get(p.id, _empty_gaussians(k)) for p in model.parts}
     m["n_gaussians"] = int(len(static.means) + sum(len(g.means) for g in bodies.values()))
 
+    raw = {b["id"]: b for b in cj["bodies"]}
     twin_json = {"schema": SCHEMA, "parts": [], "static": {
         "body": "static", "gaussians": "gaussians/static.ply" if STATIC in gauss else None,
-        "collision": [s["kind"] for s in next(b for b in cj["bodies"] if b["id"] == STATIC)["collision"]]}}
-    raw = {b["id"]: b for b in cj["bodies"]}
+        "collision": _collision_files(raw[STATIC]["collision"], complete_dir, out)}}
     for b in model.bodies():
         twin_json["parts"].append({"id": b.id, "kind": by_id[b.id].kind, "body": b.id, "joint": b.id,
                                    "actuator": b.id if by_id[b.id].articulated else None,
                                    "gaussians": f"gaussians/{b.id}.ply" if b.id in gauss else None,
-                                   "collision": raw[b.id]["collision"], "interior": raw[b.id].get("interior", {})})
+                                   "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
+                                   "interior": raw[b.id].get("interior", {})})
     write_json(out / "twin.json", twin_json)
+
+    # 4b: the shareable browser recording, every part opened in turn (drawer_lib/viewer)
+    if cfg.recording.enabled:
+        r = record_twin(out, out / "open_parts.html", out / "open_parts.viser", cfg.recording)
+        m["recording_s"] = r["wall_s"]
+        m["recording_mb"] = round(r["html_bytes"] / 1e6, 3)
+    else:
+        run.skip("recording", "twin.recording.enabled = false")
 
     # 5-6: opened-state renders and their scores
     rc = cfg.renders

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 import torch
+import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "sim"))
 from sim_fixtures import kitchen, parts_of  # noqa: E402
@@ -26,6 +27,7 @@ from drawer_lib.twin.config import RendersConfig, TwinConfig  # noqa: E402
 from drawer_lib.twin.gaussians import concat, load_gaussian_ply  # noqa: E402
 from drawer_lib.twin.interior_gaussians import box_surface_gaussians  # noqa: E402
 from drawer_lib.twin.pipeline import run_twin  # noqa: E402
+from drawer_lib.viewer.scene import load_twin_scene  # noqa: E402
 
 
 def gaussians_of(model: TwinModel) -> dict:
@@ -72,12 +74,30 @@ def test_the_twin_folder_holds_every_export(built):
     n = sum(len(load_gaussian_ply(t / "gaussians" / f"{k}.ply").means) for k in gs)
     assert n == m["n_gaussians"] == sum(len(g.means) for g in gs.values())
     # a third-party PLY parser (trimesh's) reads the INRIA layout: positions and every 3DGS field
-    import trimesh
-
     pc = trimesh.load(t / "gaussians" / "static.ply")
     names = pc.metadata["_ply_raw"]["vertex"]["data"].dtype.names
     assert {"f_dc_0", "opacity", "scale_0", "rot_0", "f_rest_44"} <= set(names)
     np.testing.assert_allclose(pc.vertices, load_gaussian_ply(t / "gaussians" / "static.ply").means.numpy(), atol=1e-6)
+
+
+def test_every_file_twin_json_names_is_in_the_twin_folder_and_the_viewer_opens_it(built):
+    d, model, gs, m, _ = built
+    t = d / "twin"
+    tj = json.loads((t / "twin.json").read_text())
+    named = [g for g in [tj["static"]["gaussians"], *[p["gaussians"] for p in tj["parts"]]] if g]
+    named += [c["file"] for b in [tj["static"], *tj["parts"]] for c in b["collision"] if c["kind"] == "mesh"]
+    assert any(c["kind"] == "mesh" for p in tj["parts"] for c in p["collision"])  # the cups' hulls
+    for f in named:
+        assert (t / f).is_file(), f
+    # a collision mesh is world frame at rest, as the boxes: the cup's hull lies around the cup
+    cup = next(p for p in tj["parts"] if p["id"] == "cup_0")
+    v = trimesh.load(t / cup["collision"][0]["file"]).vertices
+    np.testing.assert_allclose(v.mean(0)[:2], [2.3, 0.3], atol=0.01)
+    # the recording: a self-contained page, and the viewer reads the folder
+    assert b"__VISER_EMBED_DATA__" in (t / "open_parts.html").read_bytes() and (t / "open_parts.viser").is_file()
+    assert m["recording_mb"] > 0.5
+    sc = load_twin_scene(t)
+    assert [b.id for b in sc.bodies] == [p["id"] for p in tj["parts"]] and sc.n_gaussians == m["n_gaussians"]
 
 
 def test_opened_renders_are_indexed_per_part_at_half_its_range(built):
