@@ -279,14 +279,24 @@ class TwinViewer:
         if self.sim_box.value != on:
             self.sim_box.value = on
 
-    def _control(self) -> None:
-        m, d = self.model, self.data
-        for pid, target in self.targets.items():
-            a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, pid)
-            if a < 0:
-                continue
-            lo, hi = m.actuator_ctrlrange[a] if m.actuator_ctrllimited[a] else (-np.inf, np.inf)
-            d.ctrl[a] = float(np.clip((target - d.qpos[self._qadr(pid)]) / TRACK_TAU, lo, hi))
+    def _drives(self) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(part ids, actuator ids, qpos addresses, ctrl lower, ctrl upper) of the parts that have
+        a drive, for the current model (cached per model: a drop recompiles it)."""
+        m = self.model
+        if getattr(self, "_drives_of", None) is not m:
+            ids, acts, qadr = [], [], []
+            for pid in self.targets:
+                a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, pid)
+                if a >= 0:
+                    ids.append(pid)
+                    acts.append(a)
+                    qadr.append(self._qadr(pid))
+            acts = np.array(acts, int)
+            limited = m.actuator_ctrllimited[acts].astype(bool)
+            lo = np.where(limited, m.actuator_ctrlrange[acts, 0], -np.inf)
+            hi = np.where(limited, m.actuator_ctrlrange[acts, 1], np.inf)
+            self._drives_cache, self._drives_of = (ids, acts, np.array(qadr, int), lo, hi), m
+        return self._drives_cache
 
     def step(self, seconds: float) -> None:
         """Advance the physics by ``seconds`` of simulated time and send the poses (the thread's
@@ -294,8 +304,11 @@ class TwinViewer:
         ``FloatingPointError`` (MuJoCo's silent auto-reset is off, see :meth:`_own`)."""
         with self.lock:
             m, d = self.model, self.data
+            ids, acts, qadr, lo, hi = self._drives()
+            target = np.array([self.targets[p] for p in ids])
             for _ in range(max(1, round(seconds / m.opt.timestep))):
-                self._control()
+                if ids:  # each drive tracks its target: clip((target - q) / TRACK_TAU, ctrlrange)
+                    d.ctrl[acts] = np.clip((target - d.qpos[qadr]) / TRACK_TAU, lo, hi)
                 mujoco.mj_step(m, d)
                 if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
                     raise FloatingPointError(f"the simulation diverged at t = {d.time:.3f} s")
