@@ -62,12 +62,13 @@ def main(argv: list[str] | None = None) -> int:
         host = "localhost" if a.host in ("127.0.0.1", "0.0.0.0") else a.host
         print(f"viewer at http://{host}:{server.get_port()}  (Ctrl-C stops it)", flush=True)
         done = threading.Event()
-        signal.signal(signal.SIGTERM, lambda *_: done.set())
-        try:
-            while not done.wait(0.5):
-                pass
-        except KeyboardInterrupt:
+        # explicit handlers: a process started in the background inherits SIGINT ignored, and
+        # then Python raises no KeyboardInterrupt
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: done.set())
+        while not done.wait(0.5):
             pass
+        print("stopping", flush=True)
         viewer.close()
         return 0
     finally:
