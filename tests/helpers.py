@@ -84,3 +84,12 @@ def scene_paths(tmp: Path, scene: str = "kitchen_tiny"):
     from drawer_lib.paths import ScenePaths
 
     return ScenePaths(tmp / "out", scene)
+
+
+def quat_to_rot(q):
+    """Rotation matrix of one wxyz quaternion of any norm, written out term by term: the slow
+    reference the rotation code is tested against."""
+    w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])

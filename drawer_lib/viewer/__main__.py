@@ -49,7 +49,8 @@ def main(argv: list[str] | None = None) -> int:
     server = viser.ViserServer(host=a.host, port=a.port, label=f"DRAWER twin: {a.twin}", verbose=False)
     try:
         viewer = TwinViewer(scene, server, show_collision=a.collision)
-        print(f"{a.twin}: {scene.n_gaussians:,} Gaussians, {len(scene.bodies)} bodies; "
+        print(f"{a.twin}: {scene.n_gaussians:,} Gaussians ({scene.n_clamped:,} with scales clamped to "
+              f"[{a.min_scale:g}, 10] m), {len(scene.bodies)} bodies; "
               f"read in {t_load:.2f} s, sent to the scene in {viewer.build_s:.2f} s", flush=True)
         if a.record:
             html = a.record.with_suffix(".html")

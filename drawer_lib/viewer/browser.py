@@ -11,6 +11,7 @@ open the page as a user would, press keys on its sliders and take screenshots.
 import base64
 import io
 import json
+import os
 import shutil
 import socket
 import subprocess
@@ -29,8 +30,6 @@ FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-
 
 def chromium_binary() -> str | None:
     """Path of the system Chromium (``$CHROMIUM`` first), or None."""
-    import os
-
     for name in (os.environ.get("CHROMIUM"), "chromium", "chromium-browser", "google-chrome"):
         if name and shutil.which(name):
             return shutil.which(name)

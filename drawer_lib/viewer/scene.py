@@ -20,8 +20,7 @@ Units: metres, radians; quaternions are wxyz (MuJoCo's and viser's order).
 """
 
 import json
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -30,7 +29,7 @@ import trimesh
 from jaxtyping import Float, Int
 
 from drawer_lib.errors import InputError
-from drawer_lib.geometry.rotations import quat_to_matrix
+from drawer_lib.geometry.rotations import matrix_to_quat, quat_to_matrix
 from drawer_lib.splat.sh import C0
 from drawer_lib.twin.gaussians import load_gaussian_ply
 
@@ -98,7 +97,11 @@ class TwinScene:
     bodies: list[ViewBody]
     rest_xpos: np.ndarray
     rest_xquat: np.ndarray
-    timings: dict = field(default_factory=dict)
+
+    @property
+    def n_clamped(self) -> int:
+        """Gaussians drawn with clamped scales (see :func:`splats_of`)."""
+        return sum(b.splats.n_clamped for b in [self.static, *self.bodies] if b.splats is not None)
 
     @property
     def n_gaussians(self) -> int:
@@ -198,27 +201,13 @@ def body_hulls(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> list[tuple[np.
     return out
 
 
-def quat_conj(q: Float[np.ndarray, "*B 4"]) -> Float[np.ndarray, "*B 4"]:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def quat_mul_np(a: Float[np.ndarray, "*B 4"], b: Float[np.ndarray, "*B 4"]) -> Float[np.ndarray, "*B 4"]:
-    """Hamilton product of wxyz quaternions, broadcast over leading axes."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
-
-
 def relative_poses(xpos: Float[np.ndarray, "B 3"], xquat: Float[np.ndarray, "B 4"], rest_xpos: Float[np.ndarray, "B 3"],
                    rest_xquat: Float[np.ndarray, "B 4"]) -> tuple[np.ndarray, np.ndarray]:
     """(position [B, 3], wxyz [B, 4]) of ``X(t) X(0)^-1`` per body: the rigid motion that takes
     a point given at rest (world frame) to where the body has carried it,
     ``p -> R(t) R(0)^T (p - x(0)) + x(t)``."""
-    dq = quat_mul_np(xquat, quat_conj(rest_xquat))
-    dq = dq / np.linalg.norm(dq, axis=-1, keepdims=True)
-    pos = xpos - np.einsum("bij,bj->bi", quat_to_matrix(dq), rest_xpos)
-    return pos, dq
+    R = quat_to_matrix(xquat) @ np.swapaxes(quat_to_matrix(rest_xquat), -1, -2)
+    return xpos - np.einsum("bij,bj->bi", R, rest_xpos), matrix_to_quat(R)
 
 
 def _twin_json(folder: Path) -> dict:
@@ -248,7 +237,6 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
     """Read a twin folder (``twin.json``, ``scene.xml``, ``gaussians/``). A missing or broken file,
     or a part of ``twin.json`` that ``scene.xml`` lacks, is an :class:`InputError` naming it."""
     folder = Path(folder)
-    t0 = time.perf_counter()
     tj = _twin_json(folder)
     xml = folder / "scene.xml"
     if not xml.is_file():
@@ -259,7 +247,6 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
         raise InputError(f"{xml}: MuJoCo cannot load it ({e})") from e
     d = mujoco.MjData(m)
     mujoco.mj_kinematics(m, d)
-    t_xml = time.perf_counter() - t0
 
     def mj_body(name: str) -> int:
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
@@ -267,7 +254,6 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
             raise InputError(f"{xml}: no body named {name!r} (listed in {folder / 'twin.json'})")
         return b
 
-    t0 = time.perf_counter()
     st = tj.get("static") or {}
     sb = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, st.get("body", STATIC))
     static = ViewBody(STATIC, STATIC, _splats(folder, st.get("gaussians"), "the static scene", min_scale),
@@ -289,15 +275,5 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
             joint = Joint(kind, d.xanchor[j].copy(), d.xaxis[j].copy(), (lo, hi))
         bodies.append(ViewBody(pid, kind, _splats(folder, p.get("gaussians"), f"part {pid!r}", min_scale),
                                body_hulls(m, d, b), joint, b))
-    scene = TwinScene(folder, xml, m, static, bodies, d.xpos.copy(), d.xquat.copy())
-    scene.timings = {"model_s": t_xml, "gaussians_s": time.perf_counter() - t0}
-    return scene
-
-
-def joint_qpos(m: mujoco.MjModel, pid: str) -> int:
-    """qpos address of joint ``pid``."""
-    j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, pid)
-    if j < 0:
-        raise KeyError(f"no joint {pid!r}")
-    return int(m.jnt_qposadr[j])
+    return TwinScene(folder, xml, m, static, bodies, d.xpos.copy(), d.xquat.copy())
 

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 import torch
 
+from helpers import quat_to_rot
+
 from drawer_lib.errors import InputError
 from drawer_lib.io.parts import Axis, Front, Part
 from drawer_lib.splat.ply import write_gaussian_ply
@@ -17,14 +19,6 @@ from drawer_lib.twin.gaussians import joint_motion, load_gaussian_ply, sh_rotati
 def random_rotation(rng):
     q = rng.standard_normal(4)
     q /= np.linalg.norm(q)
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def quat_to_rot(q):
-    q = q / np.linalg.norm(q)
     w, x, y, z = q
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],

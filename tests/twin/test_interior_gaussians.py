@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 import torch
 
+from helpers import quat_to_rot
+
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera, Intrinsics, invert_rigid, look_at_opencv
 from drawer_lib.splat.render import render
@@ -15,13 +17,6 @@ from drawer_lib.twin.interior_gaussians import box_faces, box_surface_gaussians
 def rot_z(deg):
     a = np.deg2rad(deg)
     return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-
-
-def quat_to_rot(q):
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def test_gaussians_lie_on_the_faces_flat_and_coloured():

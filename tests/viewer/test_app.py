@@ -13,6 +13,7 @@ import viser
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from viewer_fixtures import write_tiny_twin  # noqa: E402
+from helpers import quat_to_rot  # noqa: E402
 
 from drawer_lib.geometry.joints import joint_transform  # noqa: E402
 from drawer_lib.viewer.__main__ import main  # noqa: E402
@@ -36,12 +37,8 @@ def viewer(twin):
 
 
 def _frame_matrix(f) -> np.ndarray:
-    w, x, y, z = f.wxyz
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, f.position
+    T[:3, :3], T[:3, 3] = quat_to_rot(f.wxyz), f.position
     return T
 
 

@@ -15,12 +15,12 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from viewer_fixtures import write_tiny_twin  # noqa: E402
+from helpers import quat_to_rot  # noqa: E402
 
 from drawer_lib.errors import InputError  # noqa: E402
 from drawer_lib.geometry.joints import joint_transform  # noqa: E402
 from drawer_lib.splat.render import Gaussians  # noqa: E402
-from drawer_lib.viewer.scene import (body_hulls, covariances, load_twin_scene, quat_mul_np, relative_poses,  # noqa: E402
-                                     splats_of)
+from drawer_lib.viewer.scene import body_hulls, covariances, load_twin_scene, relative_poses, splats_of  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -28,18 +28,11 @@ def twin(tmp_path_factory) -> Path:
     return write_tiny_twin(tmp_path_factory.mktemp("viewer") / "twin")
 
 
-def _rot(q):
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def test_covariances_match_a_per_gaussian_loop():
     rng = np.random.default_rng(0)
     q = rng.normal(size=(50, 4)) * rng.uniform(0.1, 10, size=(50, 1))  # any norm
     s = np.exp(rng.uniform(-8, 1, size=(50, 3)))
-    ref = np.stack([_rot(qi) @ np.diag(si**2) @ _rot(qi).T for qi, si in zip(q, s)])
+    ref = np.stack([quat_to_rot(qi) @ np.diag(si**2) @ quat_to_rot(qi).T for qi, si in zip(q, s)])
     np.testing.assert_allclose(covariances(q, s), ref, rtol=1e-10, atol=1e-18)
     with pytest.raises(ValueError, match="zero quaternions"):
         covariances(np.zeros((1, 4)), np.ones((1, 3)))
@@ -100,13 +93,13 @@ def test_relative_poses_move_rest_points_as_the_joint_does(twin, pid, q):
     b = sc.body(pid)
     pos, wxyz = relative_poses(d.xpos[[b.mj_body]], d.xquat[[b.mj_body]], sc.rest_xpos[[b.mj_body]], sc.rest_xquat[[b.mj_body]])
     rest = b.splats.centers.astype(np.float64)
-    moved = rest @ _rot(wxyz[0]).T + pos[0]
+    moved = rest @ quat_to_rot(wxyz[0]).T + pos[0]
     T = joint_transform(b.kind, b.joint.anchor, b.joint.axis, q)  # the analytic joint motion
     np.testing.assert_allclose(moved, rest @ T[:3, :3].T + T[:3, 3], atol=1e-9)
     # and MuJoCo's own geoms went to the same place
     now = np.concatenate([h[0] for h in body_hulls(m, d, b.mj_body)])
     then = np.concatenate([h[0] for h in b.hulls])
-    np.testing.assert_allclose(then @ _rot(wxyz[0]).T + pos[0], now, atol=1e-9)
+    np.testing.assert_allclose(then @ quat_to_rot(wxyz[0]).T + pos[0], now, atol=1e-9)
 
 
 def test_relative_poses_of_a_free_body_compose():
@@ -116,9 +109,8 @@ def test_relative_poses_of_a_free_body_compose():
     x0, x1 = rng.normal(size=(2, 3))
     pos, wxyz = relative_poses(x1[None], q1[None], x0[None], q0[None])
     p = rng.normal(size=(10, 3))  # points given at rest, in the world
-    local = (p - x0) @ _rot(q0)  # the same points in the body frame
-    np.testing.assert_allclose(p @ _rot(wxyz[0]).T + pos[0], local @ _rot(q1).T + x1, atol=1e-12)
-    np.testing.assert_allclose(quat_mul_np(q1, np.array([1.0, 0, 0, 0])), q1)
+    local = (p - x0) @ quat_to_rot(q0)  # the same points in the body frame
+    np.testing.assert_allclose(p @ quat_to_rot(wxyz[0]).T + pos[0], local @ quat_to_rot(q1).T + x1, atol=1e-12)
 
 
 def _copy(twin, tmp_path):
