@@ -44,10 +44,12 @@ def _free_port() -> int:
 
 class HeadlessChromium:
     """A Chromium process showing ``url`` at a viewport of ``size`` = (width, height) px, and a
-    CDP session to its page. Use as a context manager; the process and its profile are removed
+    CDP session to its page (``extra_flags``: more command-line flags, e.g. a dead proxy to
+    check that a page needs no network). Use as a context manager; the process and its profile are removed
     on exit."""
 
-    def __init__(self, url: str, size: tuple[int, int] = (960, 600), timeout: float = 30.0):
+    def __init__(self, url: str, size: tuple[int, int] = (960, 600), timeout: float = 30.0,
+                 extra_flags: list[str] | None = None):
         from websockets.sync.client import connect
 
         exe = chromium_binary()
@@ -56,8 +58,8 @@ class HeadlessChromium:
         self.size = size
         self._profile = tempfile.mkdtemp(prefix="drawer_chromium_")
         port = _free_port()
-        self.proc = subprocess.Popen([exe, *FLAGS, f"--remote-debugging-port={port}", f"--user-data-dir={self._profile}",
-                                      f"--window-size={size[0]},{size[1]}", "about:blank"],
+        self.proc = subprocess.Popen([exe, *FLAGS, *(extra_flags or []), f"--remote-debugging-port={port}", f"--user-data-dir={self._profile}",
+                                      f"--window-size={size[0]},{size[1]}", url],
                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         t0, targets = time.monotonic(), None
         while targets is None:
@@ -72,8 +74,8 @@ class HeadlessChromium:
         self.ws = connect(page["webSocketDebuggerUrl"], max_size=None, open_timeout=timeout)
         self._id = 0
         self.cdp("Emulation.setDeviceMetricsOverride", width=size[0], height=size[1], deviceScaleFactor=1, mobile=False)
-        self.cdp("Page.enable")
-        self.cdp("Page.navigate", url=url)
+        # the page opens ``url`` itself: navigating an about:blank page to a file:// URL moves it
+        # to another renderer and detaches this session
 
     def cdp(self, method: str, timeout: float = 120.0, **params) -> dict:
         """Send one command and return its result (events in between are dropped); a protocol

@@ -100,3 +100,17 @@ def test_moving_a_slider_in_the_page_changes_the_image_inside_the_part_only(tmp_
     n_in, n_out = int(changed[inside].sum()), int(changed[~inside].sum())
     assert n_in > 500, f"only {n_in} px changed in the drawer's region"
     assert n_out <= 0.0005 * (~inside).sum(), f"{n_out} px changed outside the drawer's region ({n_in} inside)"
+
+
+def test_the_shared_recording_plays_offline_from_a_file(tmp_path):
+    """open_parts.html as a user opens it: from disk, with every non-local request refused."""
+    from drawer_lib.viewer.config import RecordConfig
+    from drawer_lib.viewer.record import record_twin
+
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    html = tmp_path / "open_parts.html"
+    record_twin(write_tiny_twin(tmp_path / "twin"), html, cfg=RecordConfig(seconds=0.3, hold=0.1))
+    with HeadlessChromium(html.as_uri(), size=(640, 400), extra_flags=["--proxy-server=127.0.0.1:9"]) as page:
+        drawn = lambda: (page.screenshot().astype(int).sum(-1) < 3 * 235).mean()  # noqa: E731  non-white share
+        page.wait_until(lambda: drawn() > 0.05, 90, "the recording's scene to be drawn")
+        page.screenshot(ARTIFACTS / "recording.png")
