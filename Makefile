@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study view bench-viewer clean
+.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench profile bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study view bench-viewer clean
 
 run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline (dvc repro)
 	$(BIN)/python scripts/compose_params.py
@@ -46,6 +46,16 @@ params: setup ## write params.yaml from conf/
 
 check-params: setup ## fail when params.yaml is stale
 	$(BIN)/python scripts/compose_params.py --check
+
+BENCH_REF ?= e1246f9
+BENCH_ONLY ?= noop raster step mesh sdf sdf4x
+bench: setup ## the speed figures (issue 22) side by side with BENCH_REF, in one run (~25 min; needs `make run` first)
+	$(BIN)/pip install -q gsplat==1.5.3
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/bench_speed.py --ref $(BENCH_REF) --only $(BENCH_ONLY)
+
+STAGE ?= mesh@kitchen_small
+profile: setup ## cProfile one stage in place (STAGE=sdf@kitchen_small ARGS="sdf.neural.steps=200"), outputs restored after
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/profile_stage.py $(STAGE) $(ARGS)
 
 bench-capture: setup ## capture of kitchen_small: wall time, peak memory, no-op dvc repro
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/bench_capture.py

@@ -90,6 +90,18 @@ def frustum_mask(lo: np.ndarray, shape: tuple[int, int, int], cell: float, intr:
     return seen.numpy()
 
 
+def seen_crossing_mask(values: np.ndarray, lo: np.ndarray, cell: float, intr: Intrinsics, w2c: np.ndarray,
+                       level: float = 0.0, near: float = 0.05) -> np.ndarray:
+    """Marching-cubes mask of the cubes of ``values`` that straddle ``level`` and whose highest
+    corner lies in a camera's frustum: the same mesh as the plain frustum mask, with the frustum
+    tested only at crossing cubes (a full grid holds ~10^7 vertices, each tested against every
+    camera otherwise). All False when nothing crosses or nothing crossing is seen."""
+    crossing = crossing_cubes(values, level)
+    if not crossing.any():
+        return crossing
+    return frustum_mask(lo, crossing.shape, cell, intr, w2c, near, where=crossing)
+
+
 def marching_cubes_mesh(values: np.ndarray, lo: np.ndarray, cell: float, level: float = 0.0,
                         mask: np.ndarray | None = None) -> trimesh.Trimesh:
     """Zero-level-set (``level``) mesh of an SDF grid, outward normals (towards positive SDF).
@@ -101,25 +113,56 @@ def marching_cubes_mesh(values: np.ndarray, lo: np.ndarray, cell: float, level: 
         return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
     if not (v.min() < level < v.max()):
         return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
-    verts, faces, _, _ = marching_cubes(v, level, spacing=(cell, cell, cell), mask=mask, allow_degenerate=False)
+    try:
+        verts, faces, _, _ = marching_cubes(v, level, spacing=(cell, cell, cell), mask=mask, allow_degenerate=False)
+    except RuntimeError as e:  # the level set crosses the grid, but no masked cube
+        if "No surface found" not in str(e):
+            raise
+        return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
     # skimage's winding already makes face normals point towards increasing values (s > 0)
     return trimesh.Trimesh(verts + np.asarray(lo), faces, process=False)
 
 
+# scikit-image's Lewiner marching cubes reads its ``mask`` at a cube's *highest* corner: the cube
+# spanning vertices [i, i+1] x [j, j+1] x [k, k+1] is computed when mask[i+1, j+1, k+1] (checked
+# in tests/mesh against single-cube volumes). Cube masks below use that indexing.
+
+
+def _cube_corners(v: np.ndarray):
+    """The 8 corner views [X-1, Y-1, Z-1] of the cubes of a vertex grid [X, Y, Z]."""
+    X, Y, Z = (n - 1 for n in v.shape)
+    return [v[dx : dx + X, dy : dy + Y, dz : dz + Z] for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)]
+
+
+def crossing_cubes(values: np.ndarray, level: float = 0.0) -> np.ndarray:
+    """Marching-cubes mask (bool, shape of ``values``; a cube at its highest corner) of the cubes
+    whose 8 corner values straddle ``level`` (min <= level <= max): the only cubes that can
+    produce a triangle, so restricting any other mask to them leaves the mesh unchanged."""
+    v = np.asarray(values, np.float32)
+    out = np.zeros(v.shape, bool)
+    if min(v.shape) < 2:
+        return out
+    first, *rest = _cube_corners(v)
+    lo, hi = first.copy(), first.copy()
+    for c in rest:
+        np.minimum(lo, c, out=lo)
+        np.maximum(hi, c, out=hi)
+    out[1:, 1:, 1:] = (lo <= level) & (hi >= level)
+    return out
+
+
 def cube_mask(vertex_ok: np.ndarray) -> np.ndarray:
-    """Marching-cubes mask (scikit-image tests the cube at its lowest corner) that keeps the
-    cubes whose 8 corners are all ``vertex_ok`` [X, Y, Z]."""
+    """Marching-cubes mask (a cube at its highest corner) that keeps the cubes whose 8 corners
+    are all ``vertex_ok`` [X, Y, Z]."""
     ok = np.asarray(vertex_ok, bool)
     out = np.zeros_like(ok)
     if min(ok.shape) < 2:
         return out
-    X, Y, Z = (n - 1 for n in ok.shape)
-    c = np.ones((X, Y, Z), bool)
-    for dx in (0, 1):
-        for dy in (0, 1):
-            for dz in (0, 1):
-                c &= ok[dx : dx + X, dy : dy + Y, dz : dz + Z]
-    out[:X, :Y, :Z] = c
+    first, *rest = _cube_corners(ok)
+    c = first.copy()
+    for r in rest:
+        c &= r
+    out[1:, 1:, 1:] = c
     return out
 
 
@@ -130,7 +173,7 @@ def grid_field_mesh(grid, intr: Intrinsics, w2c: np.ndarray, level: float = 0.0,
     both observed and seen."""
     obs = grid.observed()
     cubes = cube_mask(obs)
-    # both masks index a cube by its lowest corner: testing the frustum only where a cube is
+    # both masks index a cube by its highest corner: testing the frustum only where a cube is
     # observed gives the same mask with far fewer projections
     mask = cubes & frustum_mask(grid.lo, obs.shape, grid.cell, intr, w2c, near, where=cubes)
     if not mask.any():

@@ -12,7 +12,7 @@ from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.mesh.clean import clean_mesh
 from drawer_lib.mesh.config import MeshConfig
-from drawer_lib.mesh.extract import frustum_mask, grid_field_mesh, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.extract import grid_field_mesh, marching_cubes_mesh, sdf_grid, seen_crossing_mask
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
@@ -24,7 +24,8 @@ def extract_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture) -> trimesh.T
     fields, to cubes whose 8 corners were observed)."""
     w2c = np.stack([cap.frames[i].w2c for i in cap.train])
     empty = InputError(f"mesh: no part of the field's box {np.round(field.lo, 3).tolist()} - "
-                       f"{np.round(field.hi, 3).tolist()} lies in a train camera's view (empty visibility region)")
+                       f"{np.round(field.hi, 3).tolist()} lies in a train camera's view "
+                       f"where its level set s = {cfg.level} crosses it (empty visibility region)")
     if field.grid is not None:
         try:
             return grid_field_mesh(field.grid, cap.intrinsics, w2c, cfg.level, cfg.near)
@@ -32,7 +33,9 @@ def extract_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture) -> trimesh.T
             raise empty from e
     lo, cell = field.lo, cfg.cell
     values = sdf_grid(field.sdf, field.lo, field.hi, cfg.cell, cfg.coarse_factor)
-    mask = frustum_mask(lo, values.shape, cell, cap.intrinsics, w2c, cfg.near)
+    if not values.min() <= cfg.level <= values.max():  # run_mesh says that the level set does not cross the box
+        return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
+    mask = seen_crossing_mask(values, lo, cell, cap.intrinsics, w2c, cfg.level, cfg.near)
     if not mask.any():
         raise empty
     return marching_cubes_mesh(values, lo, cell, cfg.level, mask)

@@ -37,7 +37,9 @@ def _cell(u, r):
 @no_type_check  # keep the test-suite type-check hook away from numba
 def _index(cx, cy, cz, ry, rz, size, hashed, offset):
     if hashed:
-        h = (np.int64(cx)) ^ (np.int64(cy) * P1) ^ (np.int64(cz) * P2)
+        h = (np.int64(cx)) ^ (np.int64(cy) * P1) ^ (np.int64(cz) * P2)  # >= 0 (cells and primes are)
+        if size & (size - 1) == 0:  # a power-of-two table (always, from MultiResGrid): a mask, no division
+            return offset + (h & (size - 1))
         return offset + h % size
     return offset + (np.int64(cx) * (ry + 1) + cy) * (rz + 1) + cz
 

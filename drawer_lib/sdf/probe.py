@@ -17,7 +17,7 @@ from drawer_lib.geometry.camera import pixel_dirs
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.mesh import load_mesh
-from drawer_lib.mesh.extract import frustum_mask, grid_field_mesh, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.extract import grid_field_mesh, marching_cubes_mesh, sdf_grid, seen_crossing_mask
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.paths import capture_name
 from drawer_lib.sdf.io import GridSDF
@@ -69,7 +69,7 @@ class GeometryProbe:
             except ValueError:  # nothing observed in view: no quick mesh (an empty curve cell)
                 return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
         v = sdf_grid(sdf_fn, lo, hi, self.cell, 4)
-        mask = frustum_mask(lo, v.shape, self.cell, self.cap.intrinsics, self.w2c)
+        mask = seen_crossing_mask(v, lo, self.cell, self.cap.intrinsics, self.w2c)
         return marching_cubes_mesh(v, lo, self.cell, 0.0, mask)
 
     def __call__(self, sdf_fn: Callable, lo: np.ndarray, hi: np.ndarray, depth_fn: DepthFn | None,

@@ -11,7 +11,7 @@ import trimesh
 from drawer_lib.errors import NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.mesh.clean import CleanConfig, clean_mesh
-from drawer_lib.mesh.extract import cube_mask, frustum_mask, grid_shape, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.extract import crossing_cubes, cube_mask, frustum_mask, seen_crossing_mask, grid_shape, marching_cubes_mesh, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.sdf.io import GridSDF
 
@@ -62,12 +62,27 @@ def test_no_crossing_or_empty_mask_gives_an_empty_mesh():
         marching_cubes_mesh(np.full((3, 3, 3), np.nan), np.zeros(3), 0.1)
 
 
+def test_marching_cubes_mask_is_read_at_the_cube_s_highest_corner():
+    """The convention cube_mask and crossing_cubes rely on: one negative vertex makes 8 crossing
+    cubes, and scikit-image computes exactly those whose highest corner is masked."""
+    v = np.ones((6, 6, 6), np.float32)
+    v[2, 2, 2] = -1.0
+    hits = []
+    for idx in np.ndindex(*v.shape):
+        m = np.zeros(v.shape, bool)
+        m[idx] = True
+        if len(marching_cubes_mesh(v, np.zeros(3), 1.0, mask=m).faces):
+            hits.append(idx)
+    assert hits == [tuple(int(i) for i in np.argwhere(crossing_cubes(v))[n]) for n in range(8)]
+    assert {h for h in hits} == {(2 + a, 2 + b, 2 + c) for a in (0, 1) for b in (0, 1) for c in (0, 1)}
+
+
 def test_cube_mask_keeps_cubes_with_all_corners_known():
     ok = np.ones((4, 4, 4), bool)
     ok[3, 3, 3] = False
     m = cube_mask(ok)
-    assert m.shape == ok.shape and not m[2, 2, 2] and m[1, 1, 1] and m[:3, :3, :3].sum() == 26
-    assert not m[3].any()  # the last layer starts no cube
+    assert m.shape == ok.shape and not m[3, 3, 3] and m[2, 2, 2] and m[1:, 1:, 1:].sum() == 26
+    assert not m[0].any() and not m[:, 0].any() and not m[:, :, 0].any()  # a cube's highest corner is never at 0
 
 
 def test_grid_field_never_meshes_unobserved_cells():
@@ -99,6 +114,36 @@ def test_frustum_mask_marks_what_a_camera_sees():
     where = np.random.default_rng(0).random(shape) < 0.3
     for chunk in (1 << 20, 97):
         np.testing.assert_array_equal(frustum_mask(lo, shape, cell, intr, w2c, where=where, chunk=chunk), m & where)
+
+
+def test_crossing_cubes_against_a_loop_over_cubes():
+    v = np.random.default_rng(1).normal(size=(5, 6, 4)).astype(np.float32)
+    v[0, 0, 0] = 0.25  # a corner exactly at the level counts as crossing
+    ref = np.zeros(v.shape, bool)
+    for i, j, k in np.ndindex(4, 5, 3):
+        c = v[i : i + 2, j : j + 2, k : k + 2]
+        ref[i + 1, j + 1, k + 1] = c.min() <= 0.25 and c.max() >= 0.25
+    np.testing.assert_array_equal(crossing_cubes(v, 0.25), ref)
+    assert crossing_cubes(v, 0.25)[1, 1, 1]
+    assert crossing_cubes(np.ones((1, 4, 4)), 0.0).shape == (1, 4, 4)
+
+
+def test_frustum_mask_only_on_crossing_cubes_gives_the_same_mesh():
+    """The mesh stage tests the frustum only where a cube straddles the level: the same mesh,
+    vertex for vertex, as with the full mask (a camera sees part of the sphere)."""
+    lo, cell = np.full(3, -0.8), 0.02
+    v = sdf_grid(sphere_sdf, lo, np.full(3, 0.8), cell, 4)
+    intr = Intrinsics(fx=150.0, fy=150.0, cx=50.0, cy=40.0, width=100, height=80)
+    w2c = np.eye(4)[None]
+    w2c[0, 2, 3] = 1.2  # sphere centre 1.2 m ahead, a narrow view of its front
+    full = frustum_mask(lo, v.shape, cell, intr, w2c)
+    near = seen_crossing_mask(v, lo, cell, intr, w2c)
+    np.testing.assert_array_equal(near, frustum_mask(lo, v.shape, cell, intr, w2c, where=crossing_cubes(v)))
+    assert near.sum() < 0.2 * full.sum()
+    a, b = marching_cubes_mesh(v, lo, cell, mask=full), marching_cubes_mesh(v, lo, cell, mask=near)
+    assert 0 < len(a.faces) < 0.5 * len(sphere_mesh(cell=cell).faces)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(a.faces, b.faces)
 
 
 def test_clean_drops_small_components_and_simplifies():

@@ -39,6 +39,18 @@ def test_numba_encoding_equals_torch_reference(hashed):
     torch.testing.assert_close(a.table.grad, b.table.grad, rtol=1e-4, atol=1e-5 * scale)
 
 
+@pytest.mark.parametrize("size", [1024, 1000])
+def test_hashed_index_is_the_hash_modulo_the_table_size(size):
+    """The kernel masks power-of-two tables instead of dividing: the same index as h mod size
+    (checked in Python integers), for a non-power-of-two table too."""
+    from drawer_lib.sdf import _grid_kernels as K
+
+    rng = np.random.default_rng(0)
+    for cx, cy, cz in rng.integers(0, 5000, size=(200, 3)):
+        h = int(cx) ^ (int(cy) * 2654435761) ^ (int(cz) * 805459861)
+        assert K._index(int(cx), int(cy), int(cz), 10, 10, size, True, 7) == 7 + h % size
+
+
 def test_encoding_spatial_derivative_matches_finite_differences():
     g = grid("torch").double()
     x = torch.rand(50, 3, dtype=torch.float64) * torch.tensor([1.8, 1.0, 0.8], dtype=torch.float64) + torch.tensor(
