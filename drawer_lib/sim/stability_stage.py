@@ -19,6 +19,8 @@ import copy
 import csv
 import json
 import math
+import multiprocessing as mp
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,13 +48,17 @@ class StabilityConfig:
     """``integrators`` / ``timesteps`` (s) of the matrix; ``tolerance``: the largest error a
     cell may have to pass (m of a front point for the twin's parts; each extreme case in its
     own unit, rad or m); ``extremes``: run the extreme cases; ``rtf_time``: simulated seconds
-    of the full twin (contacts on, at rest) stepped to measure its real-time factor."""
+    of the full twin (contacts on, at rest) stepped to measure its real-time factor;
+    ``workers``: processes the matrix's cases are spread over (0 = one per core). The cells
+    do not depend on it (each case runs whole in one process; cells keep the case order),
+    only their wall times do."""
 
     integrators: list[str] = field(default_factory=lambda: list(INTEGRATORS))
     timesteps: list[float] = field(default_factory=_default_timesteps)
     tolerance: float = 1e-3
     extremes: bool = True
     rtf_time: float = 1.0
+    workers: int = 0
 
     def __post_init__(self):
         bad = [i for i in self.integrators if i not in INTEGRATORS]
@@ -64,6 +70,8 @@ class StabilityConfig:
             raise ConfigError(f"stability.tolerance = {self.tolerance} must be > 0")
         if not self.rtf_time > 0:
             raise ConfigError(f"stability.rtf_time = {self.rtf_time} must be > 0 s")
+        if self.workers < 0:
+            raise ConfigError(f"stability.workers = {self.workers} must be >= 0 (0 = one per core)")
 
 
 def realtime_factor(m: mujoco.MjModel, integrator: str, timestep: float, duration: float) -> float:
@@ -163,28 +171,54 @@ def heatmap(rows: list[dict], tolerance: float, path: Path, choice: tuple[str, f
     plt.close(fig)
 
 
+def _cases(twin_dir: Path, parts_path: Path, extremes: bool) -> tuple[mujoco.MjModel, list, list]:
+    """(the twin's model, its articulated parts, the matrix's cases): the twin's nominal case
+    first when it has articulated parts, then the extreme cases."""
+    _, m = load_twin(twin_dir, parts_path)
+    parts = [p for p in read_parts(parts_path).parts if p.articulated]
+    return m, parts, ([twin_case(m, parts)] if parts else []) + (extreme_cases() if extremes else [])
+
+
+_WORKER: dict = {}  # what forked workers read: the cases (they hold closures, so are not pickled)
+
+
+def _case_cells(k: int) -> tuple[list[Cell], float]:
+    """Every integrator x timestep cell of case ``k`` and the seconds its reference took."""
+    case = _WORKER["cases"][k]
+    t0 = time.perf_counter()
+    ref = reference_trace(case)
+    t_ref = time.perf_counter() - t0
+    return [run_cell(case, i, dt, ref) for i in _WORKER["integrators"] for dt in _WORKER["timesteps"]], t_ref
+
+
+def run_matrix_parallel(cfg: StabilityConfig, cases: list, progress) -> tuple[list[Cell], float]:
+    """The matrix's cells in case order, computed ``cfg.workers`` forked processes at a time
+    (each case whole in one process, so the cells do not depend on the count), and the summed
+    reference seconds. The workers only step MuJoCo and numpy: nothing of the parent's thread
+    pools is used after the fork."""
+    workers = min(cfg.workers or os.cpu_count() or 1, len(cases))
+    _WORKER.update(cases=cases, integrators=list(cfg.integrators), timesteps=list(cfg.timesteps))
+    try:
+        if workers <= 1:
+            done = [_case_cells(k) for k in progress(range(len(cases)), desc="cases", total=len(cases))]
+        else:
+            with mp.get_context("fork").Pool(workers) as pool:
+                done = list(progress(pool.imap(_case_cells, range(len(cases))), desc="cases", total=len(cases)))
+    finally:
+        _WORKER.clear()
+    return [c for cells, _ in done for c in cells], sum(t for _, t in done)
+
+
 def run_stability(cfg: StabilityConfig, parts_path: Path, twin_dir: Path, twin_default: tuple[str, float],
                   run: StageRun) -> dict:
     """The stage (module doc); returns its metrics."""
-    _, m = load_twin(twin_dir, parts_path)
-    parts = [p for p in read_parts(parts_path).parts if p.articulated]
-    cases = []
-    if parts:
-        cases.append(twin_case(m, parts))
-    else:
+    m, parts, cases = _cases(twin_dir, parts_path, cfg.extremes)
+    if not parts:
         run.skip("nominal", "no articulated part: the twin's own default is kept")
-    if cfg.extremes:
-        cases += extreme_cases()
-    else:
+    if not cfg.extremes:
         run.skip("extremes", "stability.extremes = false")
     names = {c.name: c.columns for c in cases}
-    cells: list[Cell] = []
-    t_ref = 0.0
-    for case in run.progress(cases, desc="cases", total=len(cases)):
-        t0 = time.perf_counter()
-        ref = reference_trace(case)
-        t_ref += time.perf_counter() - t0
-        cells += [run_cell(case, i, dt, ref) for i in cfg.integrators for dt in cfg.timesteps]
+    cells, t_ref = run_matrix_parallel(cfg, cases, run.progress)
     rows = _rows(cells, names)
     write_matrix(run.out("matrix"), rows)
     if parts:

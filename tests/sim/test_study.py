@@ -173,6 +173,19 @@ def test_stage_writes_the_matrix_heatmap_and_choice(stage):
     assert m["realtime_factor"] > 1 and m["n_cells_diverged"] > 0
 
 
+def test_the_matrix_does_not_depend_on_the_number_of_workers():
+    """Forked workers (one case each at a time) give the cells of the serial loop, in its order,
+    up to the measured wall time."""
+    from drawer_lib.sim.stability_stage import run_matrix_parallel
+
+    cases = [dataclasses.replace(c, duration=min(c.duration, 0.2)) for c in extreme_cases()[:4]]
+    cfg = dict(integrators=["euler", "implicitfast"], timesteps=[1e-3, 5e-3])
+    drop = lambda cells: [dataclasses.replace(c, wall_per_sim_s=0.0) for c in cells]  # noqa: E731
+    serial, _ = run_matrix_parallel(StabilityConfig(**cfg, workers=1), cases, lambda it, **kw: it)
+    forked, _ = run_matrix_parallel(StabilityConfig(**cfg, workers=2), cases, lambda it, **kw: it)
+    assert len(serial) == 4 * 2 * 2 and drop(forked) == drop(serial)
+
+
 def test_stage_choice_is_what_simulate_runs_with(stage, tmp_path):
     from drawer_lib.sim.pipeline import SimulateConfig, run_simulate
 

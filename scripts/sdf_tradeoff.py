@@ -1,0 +1,116 @@
+#!/usr/bin/env python
+"""Error against training time of the neural SDF's speed knobs, with the seed spread to judge
+them by: the ``sdf`` stage of the default scene run once per variant (Hydra overrides of
+``conf/sdf``) into a scratch directory (``out/`` is untouched; the capture is linked from it),
+``--jobs`` at a time with ``--threads`` threads each, so every variant is timed alike.
+
+Writes ``<out>/sdf_tradeoff.csv`` (one row per variant and evaluation: step, training seconds,
+Chamfer-L1, F@1cm, F@2cm of the quick mesh, test depth L1) and ``sdf_tradeoff.png`` (Chamfer and
+F@1cm against training seconds; the seeds of the default drawn in grey), and prints the final
+row of each variant next to the default's seed spread.
+
+    python scripts/sdf_tradeoff.py [--jobs 2] [--threads 1] [--out reports/speed] [--only default_s1 cache_50]
+"""
+
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENE = "kitchen_small"
+VARIANTS = {
+    "default_s0": [],
+    "default_s1": ["seed=1"],
+    "default_s2": ["seed=2"],
+    "cache_every_50": ["sdf.neural.sampling.cache_every=50"],
+    "samples_12": ["sdf.neural.sampling.fine=8", "sdf.neural.sampling.uniform=4"],
+    "steps_800": ["sdf.neural.steps=800"],
+    "steps_800_samples_12": ["sdf.neural.steps=800", "sdf.neural.sampling.fine=8", "sdf.neural.sampling.uniform=4"],
+}
+
+
+def run_variant(name: str, overrides: list[str], scratch: Path, threads: int) -> dict:
+    out = scratch / name
+    (out / SCENE).mkdir(parents=True, exist_ok=True)
+    if not (out / SCENE / "capture").exists():
+        (out / SCENE / "capture").symlink_to(ROOT / "out" / SCENE / "capture")
+    t = str(threads)
+    env = {**os.environ, "OMP_NUM_THREADS": t, "MKL_NUM_THREADS": t, "NUMBA_NUM_THREADS": t, "PYTHONPATH": str(ROOT)}
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "stages.sdf", "-cn", "dvc_stage", f"scene={SCENE}", f"paths.out={out}",
+                        *overrides], cwd=ROOT, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise SystemExit(f"{name}: the sdf stage failed (exit {r.returncode}):\n{r.stderr[-2000:]}")
+    with open(out / SCENE / "sdf" / "curve.csv") as f:
+        rows = [dict(variant=name, **row) for row in csv.DictReader(f)]
+    m = json.loads((out / SCENE / "sdf" / "metrics.json").read_text())
+    print(f"{name}: {m['steps']} steps, {m['train_s']:.0f} s training, {wall:.0f} s stage, "
+          f"chamfer {1000 * m['quick_chamfer_l1']:.2f} mm, F@1cm {m['quick_fscore_1cm']:.3f}", flush=True)
+    return {"rows": rows, "wall": wall, "metrics": m}
+
+
+def plot(results: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for name, res in results.items():
+        t = [float(r["wall_s"]) for r in res["rows"]]
+        seed = name.startswith("default_s") and name != "default_s0"
+        kw = {"color": "0.6", "lw": 1, "label": "default, other seeds" if name == "default_s1" else None} if seed \
+            else {"marker": "o", "ms": 3, "label": name}
+        axes[0].plot(t, [1000 * float(r["chamfer_l1"]) for r in res["rows"]], **kw)
+        axes[1].plot(t, [float(r["fscore_1cm"]) for r in res["rows"]], **kw)
+    axes[0].set(xlabel="training s", ylabel="Chamfer-L1 (mm)", title="quick mesh (2 cm cell) vs GT")
+    axes[1].set(xlabel="training s", ylabel="F@1cm")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--scratch", type=Path, default=Path("/tmp/drawer_sdf_tradeoff"))
+    ap.add_argument("--out", type=Path, default=ROOT / "reports" / "speed")
+    ap.add_argument("--only", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
+    args = ap.parse_args()
+    if not (ROOT / "out" / SCENE / "capture" / "transforms.json").is_file():
+        raise SystemExit(f"out/{SCENE}/capture: missing; run `dvc repro capture@{SCENE}` first")
+    with ThreadPoolExecutor(args.jobs) as ex:
+        futs = {n: ex.submit(run_variant, n, VARIANTS[n], args.scratch, args.threads) for n in args.only}
+        results = {n: f.result() for n, f in futs.items()}
+    args.out.mkdir(parents=True, exist_ok=True)
+    keys = ["variant", "step", "wall_s", "chamfer_l1", "fscore_1cm", "fscore_2cm", "test_depth_l1"]
+    with open(args.out / "sdf_tradeoff.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, keys, extrasaction="ignore")
+        w.writeheader()
+        for res in results.values():
+            w.writerows(res["rows"])
+    plot(results, args.out / "sdf_tradeoff.png")
+    seeds = [r["metrics"] for n, r in results.items() if n.startswith("default_s")]
+    print(f"\n{'variant':<24} {'steps':>5} {'train s':>8} {'chamfer mm':>10} {'F@1cm':>6} {'F@2cm':>6}")
+    for n, r in results.items():
+        m = r["metrics"]
+        print(f"{n:<24} {m['steps']:>5} {m['train_s']:>8.0f} {1000 * m['quick_chamfer_l1']:>10.2f} "
+              f"{m['quick_fscore_1cm']:>6.3f} {m['quick_fscore_2cm']:>6.3f}")
+    if len(seeds) > 1:
+        for k in ("quick_chamfer_l1", "quick_fscore_1cm", "quick_fscore_2cm"):
+            v = [m[k] for m in seeds]
+            print(f"seed spread of {k}: {min(v):.4g} - {max(v):.4g} ({len(v)} seeds)")
+    print(f"\n{args.out / 'sdf_tradeoff.csv'}, {args.out / 'sdf_tradeoff.png'}")
+
+
+if __name__ == "__main__":
+    main()
