@@ -172,10 +172,12 @@ def grid_field_mesh(grid, intr: Intrinsics, w2c: np.ndarray, level: float = 0.0,
     put a false surface at the back of the truncation band). Raises ValueError when no cube is
     both observed and seen."""
     obs = grid.observed()
-    cubes = cube_mask(obs)
-    # both masks index a cube by its highest corner: testing the frustum only where a cube is
-    # observed gives the same mask with far fewer projections
+    values = np.where(obs, grid.values, grid.unknown)
+    # all three masks index a cube by its highest corner; the frustum is tested only where an
+    # observed cube straddles the level (the only cubes with triangles): the same mesh for far
+    # fewer projections
+    cubes = cube_mask(obs) & crossing_cubes(values, level)
     mask = cubes & frustum_mask(grid.lo, obs.shape, grid.cell, intr, w2c, near, where=cubes)
     if not mask.any():
-        raise InputError("grid_field_mesh: no observed cube lies in a train camera's view")
-    return marching_cubes_mesh(np.where(obs, grid.values, grid.unknown), grid.lo, grid.cell, level, mask)
+        raise InputError("grid_field_mesh: no observed cube that the level set crosses lies in a train camera's view")
+    return marching_cubes_mesh(values, grid.lo, grid.cell, level, mask)

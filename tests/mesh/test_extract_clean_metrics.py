@@ -11,7 +11,7 @@ import trimesh
 from drawer_lib.errors import NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.mesh.clean import CleanConfig, clean_mesh
-from drawer_lib.mesh.extract import crossing_cubes, cube_mask, frustum_mask, seen_crossing_mask, grid_shape, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.extract import crossing_cubes, cube_mask, frustum_mask, grid_field_mesh, seen_crossing_mask, grid_shape, marching_cubes_mesh, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.sdf.io import GridSDF
 
@@ -142,6 +142,25 @@ def test_frustum_mask_only_on_crossing_cubes_gives_the_same_mesh():
     assert near.sum() < 0.2 * full.sum()
     a, b = marching_cubes_mesh(v, lo, cell, mask=full), marching_cubes_mesh(v, lo, cell, mask=near)
     assert 0 < len(a.faces) < 0.5 * len(sphere_mesh(cell=cell).faces)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(a.faces, b.faces)
+
+
+def test_grid_field_mesh_equals_the_full_masks():
+    """grid_field_mesh tests the frustum only at observed crossing cubes: the mesh of the plain
+    observed-and-seen mask, vertex for vertex."""
+    lo, cell = np.full(3, -0.8), 0.02
+    v = sdf_grid(sphere_sdf, lo, np.full(3, 0.8), cell, 1).astype(np.float32)
+    v[:, :, lo[2] + cell * np.arange(v.shape[2]) >= 0.1] = np.nan
+    g = GridSDF(lo, cell, v)
+    intr = Intrinsics(fx=150.0, fy=150.0, cx=50.0, cy=40.0, width=100, height=80)
+    w2c = np.eye(4)[None]
+    w2c[0, 2, 3] = 1.2
+    obs = g.observed()
+    full = cube_mask(obs) & frustum_mask(lo, obs.shape, cell, intr, w2c)
+    a = marching_cubes_mesh(np.where(obs, v, g.unknown), lo, cell, 0.0, full)
+    b = grid_field_mesh(g, intr, w2c)
+    assert len(a.faces) > 0
     np.testing.assert_array_equal(a.vertices, b.vertices)
     np.testing.assert_array_equal(a.faces, b.faces)
 
