@@ -102,7 +102,12 @@ def subdivide_to_area(verts: np.ndarray, faces: np.ndarray, max_area: float, max
         fb = Fc[big]
         edges = np.concatenate([fb[:, [0, 1]], fb[:, [1, 2]], fb[:, [2, 0]]])
         key = np.sort(edges, 1)
-        uniq, inv = np.unique(key, axis=0, return_inverse=True)
+        # unique edges as one int64 each (a n + b orders like the rows (a, b)): the same result as
+        # np.unique(key, axis=0), ~10x faster (no structured-row sort)
+        n = np.int64(len(V))
+        uk, inv = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True)
+        uniq = np.stack([uk // n, uk % n], 1)
+        inv = inv.reshape(-1)
         mids = 0.5 * (V[uniq[:, 0]] + V[uniq[:, 1]])
         mid_id = len(V) + inv.reshape(3, -1).T  # [Fb, 3]: midpoints of (01, 12, 20)
         V = np.concatenate([V, mids])
@@ -195,9 +200,51 @@ class Anchored:
     tilt: Tensor  # [N]
 
 
+class _AnchoredFn(torch.autograd.Function):
+    """The fused numba kernels of :func:`anchored_gaussians` (modes ``ste`` and ``free``)."""
+
+    @staticmethod
+    def forward(ctx, means_2d, elevate, log_scales, angles, opacity_logit, face, frames, bounds, clip):
+        from drawer_lib.splat import _anchored_kernels as AK
+
+        dt = means_2d.dtype
+        n = means_2d.shape[0]
+        npy = lambda t: t.detach().contiguous().numpy()  # noqa: E731
+        raw = [npy(t) for t in (means_2d, elevate, log_scales, angles, opacity_logit)]
+        fr = [npy(t) for t in (frames.A, frames.xhat, frames.yhat, frames.normal, frames.tri2d, frames.radius,
+                               frames.q_face)]
+        fc = npy(face)
+        outs = [torch.empty(s, dtype=dt) for s in ((n, 3), (n, 4), (n, 3), (n,), (n, 2), (n,), (n,))]
+        AK.anchored_forward(*raw, fc, *fr, float(bounds.elevate_coef), float(bounds.upper_scale),
+                            float(bounds.flat_coef), float(bounds.cone), clip, *(o.numpy() for o in outs))
+        ctx.state = (raw[2], raw[3], raw[4], fc, fr[1], fr[2], fr[3], fr[6], float(bounds.cone), clip, dt, n)
+        return tuple(outs)
+
+    @staticmethod
+    def backward(ctx, g_means, g_quats, g_scales, g_opac, g_pos2d, g_elev, g_tilt):
+        from drawer_lib.splat import _anchored_kernels as AK
+
+        ls, ang, ol, fc, xh, yh, nm, qf, cone, clip, dt, n = ctx.state
+        shapes = ((n, 3), (n, 4), (n, 3), (n,), (n, 2), (n,), (n,))
+        gs = [np.zeros(s, ls.dtype) if g is None else g.detach().to(dt).contiguous().numpy()
+              for g, s in zip((g_means, g_quats, g_scales, g_opac, g_pos2d, g_elev, g_tilt), shapes)]
+        res = [np.empty(s, ls.dtype) for s in ((n, 2), (n,), (n, 3), (n, 3), (n,))]
+        AK.anchored_backward(ls, ang, ol, fc, xh, yh, nm, qf, cone, clip, *gs, *res)
+        return (*(torch.from_numpy(r) for r in res), None, None, None, None)
+
+
 def anchored_gaussians(p: AnchoredParams, frames: FaceFrames, bounds: AnchorBounds, mode: str = "ste",
-                       sh_degree_max: int = 3) -> Anchored:
-    """Raw parameters -> activated 3D Gaussians (positions, rotations, scales in the world)."""
+                       sh_degree_max: int = 3, fused: bool = True) -> Anchored:
+    """Raw parameters -> activated 3D Gaussians (positions, rotations, scales in the world).
+    ``fused``: modes ``ste`` and ``free`` on CPU tensors run the numba kernels of
+    ``_anchored_kernels`` (equal to this PyTorch code up to float rounding); False, or mode
+    ``hard``, runs the PyTorch code."""
+    if fused and mode in ("ste", "free") and p.means_2d.device.type == "cpu":
+        ts = (p.means_2d, p.elevate, p.log_scales, p.angles, p.opacity_logit)
+        if all(t.dtype == frames.A.dtype for t in ts):
+            means, q, s, opac, pos2d, e, phi_c = _AnchoredFn.apply(*ts, p.face, frames, bounds, mode == "ste")
+            sh = torch.cat([p.sh_dc, p.sh_rest], 1)
+            return Anchored(Gaussians(means, q, s, opac, sh), pos2d, e, s, phi_c)
     f = p.face
     tri, R = frames.tri2d[f], frames.radius[f]
     pos2d = clip_through(p.means_2d, barycentric_clip(p.means_2d, tri), mode)
