@@ -35,8 +35,10 @@ VARIANTS = {
 }
 
 
-def run_variant(name: str, overrides: list[str], scratch: Path, threads: int) -> dict:
+def run_variant(name: str, overrides: list[str], scratch: Path, threads: int, reuse: bool = False) -> dict:
     out = scratch / name
+    if reuse and (out / SCENE / "sdf" / "metrics.json").is_file():
+        return read_variant(name, out, None)
     (out / SCENE).mkdir(parents=True, exist_ok=True)
     if not (out / SCENE / "capture").exists():
         (out / SCENE / "capture").symlink_to(ROOT / "out" / SCENE / "capture")
@@ -48,9 +50,14 @@ def run_variant(name: str, overrides: list[str], scratch: Path, threads: int) ->
     wall = time.perf_counter() - t0
     if r.returncode != 0:
         raise SystemExit(f"{name}: the sdf stage failed (exit {r.returncode}):\n{r.stderr[-2000:]}")
+    return read_variant(name, out, wall)
+
+
+def read_variant(name: str, out: Path, wall: float | None) -> dict:
     with open(out / SCENE / "sdf" / "curve.csv") as f:
         rows = [dict(variant=name, **row) for row in csv.DictReader(f)]
     m = json.loads((out / SCENE / "sdf" / "metrics.json").read_text())
+    wall = m["wall_s"] if wall is None else wall
     print(f"{name}: {m['steps']} steps, {m['train_s']:.0f} s training, {wall:.0f} s stage, "
           f"chamfer {1000 * m['quick_chamfer_l1']:.2f} mm, F@1cm {m['quick_fscore_1cm']:.3f}", flush=True)
     return {"rows": rows, "wall": wall, "metrics": m}
@@ -84,12 +91,13 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--scratch", type=Path, default=Path("/tmp/drawer_sdf_tradeoff"))
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "speed")
+    ap.add_argument("--reuse", action="store_true", help="read a variant's finished run in --scratch instead of rerunning it")
     ap.add_argument("--only", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
     args = ap.parse_args()
     if not (ROOT / "out" / SCENE / "capture" / "transforms.json").is_file():
         raise SystemExit(f"out/{SCENE}/capture: missing; run `dvc repro capture@{SCENE}` first")
     with ThreadPoolExecutor(args.jobs) as ex:
-        futs = {n: ex.submit(run_variant, n, VARIANTS[n], args.scratch, args.threads) for n in args.only}
+        futs = {n: ex.submit(run_variant, n, VARIANTS[n], args.scratch, args.threads, args.reuse) for n in args.only}
         results = {n: f.result() for n, f in futs.items()}
     args.out.mkdir(parents=True, exist_ok=True)
     keys = ["variant", "step", "wall_s", "chamfer_l1", "fscore_1cm", "fscore_2cm", "test_depth_l1"]
