@@ -24,16 +24,27 @@ from drawer_lib.geometry.camera import (
     opengl_to_opencv,
     project_points,
 )
-from drawer_lib.geometry.rotations import (
-    matrix_to_quat,
-    quat_to_matrix,
-    rotation_angle,
-)
+
+_LAZY = {"matrix_to_quat": "rotations", "quat_to_matrix": "rotations", "rotation_angle": "rotations",
+         "apply_transform": "joints", "joint_transform": "joints"}  # torch: imported on first use
+
+
+def __getattr__(name: str):
+    # the rotations are torch functions; importing torch eagerly cost every stage ~2 s of start-up,
+    # also those that never rotate anything (evaluate, simulate, stability, the tables, report)
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"drawer_lib.geometry.{_LAZY[name]}"), name)
+    raise AttributeError(f"module 'drawer_lib.geometry' has no attribute {name!r}")
+
 
 __all__ = [
     "Intrinsics",
+    "apply_transform",
     "check_rigid",
     "invert_rigid",
+    "joint_transform",
     "look_at_opencv",
     "matrix_to_quat",
     "opencv_to_opengl",
@@ -42,7 +53,3 @@ __all__ = [
     "quat_to_matrix",
     "rotation_angle",
 ]
-
-from drawer_lib.geometry.joints import apply_transform, joint_transform  # noqa: E402
-
-__all__ += ["apply_transform", "joint_transform"]

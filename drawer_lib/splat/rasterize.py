@@ -28,41 +28,56 @@ class Composite:
 class _CompositeFn(torch.autograd.Function):
     @staticmethod
     def forward(ctx, means2d, conics, opacities, colors, depths, radii, width, height, tile, absgrad):
-        dt = means2d.dtype
         m, co, op, cl, dp = (t.detach().contiguous().numpy() for t in (means2d, conics, opacities, colors, depths))
-        r = footprint_radius(conics.detach(), opacities.detach(), radii).numpy()
-        order = torch.argsort(depths.detach(), stable=True).numpy().astype(np.int64)
-        offsets, ids = K.bin_gaussians(m, r, order, width, height, tile)
-        rgb = np.zeros((height, width, 3), m.dtype)
-        dep = np.zeros((height, width), m.dtype)
-        alpha = np.zeros((height, width), m.dtype)
-        last = np.full((height, width), -1, np.int64)
-        K.composite_forward(m, co, op, cl, dp, r, offsets, ids, width, height, tile, rgb, dep, alpha, last)
-        ctx.np_inputs = (m, co, op, cl, dp, r, offsets, ids, alpha, last)
-        ctx.meta = (width, height, tile, dt)
+        r = radii.detach().contiguous().numpy()
+        n = m.shape[0]
+        ext = np.empty((n, 4))
+        K.footprints(m, co, op, r, ext)
+        vis = np.flatnonzero(ext[:, 1] > 0.0)
+        order = vis[np.argsort(dp[vis], kind="stable")]  # front to back (= the stable sort of all, culled removed)
+        P = np.empty((order.shape[0], K.N_P))
+        K.pack(order, m, co, op, cl, dp, ext, P)
+        offsets, ids, g_off, g_ent, cost = K.bin_gaussians(P, width, height, tile)
+        n_workers = numba.get_num_threads()
+        w_off, w_tiles = K.assign_tiles(cost, n_workers)
+        rgb = np.empty((height, width, 3), m.dtype)
+        dep = np.empty((height, width), m.dtype)
+        alpha = np.empty((height, width), m.dtype)
+        T_final = np.empty((height, width))
+        last = np.empty((height, width), np.int64)
+        work = np.zeros(cost.shape[0])
+        K.composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile, rgb, dep, alpha, T_final, last, work)
+        ctx.np_inputs = (P, order, offsets, ids, g_off, g_ent, work, T_final, last)
+        ctx.meta = (width, height, tile, m.dtype, n, n_workers)
         ctx.absgrad = absgrad
         return torch.from_numpy(rgb), torch.from_numpy(dep), torch.from_numpy(alpha)
 
     @staticmethod
     def backward(ctx, g_rgb, g_depth, g_alpha):
-        m, co, op, cl, dp, r, offsets, ids, alpha, last = ctx.np_inputs
-        width, height, tile, dt = ctx.meta
-        n_chunks = numba.get_num_threads()
-        grads = np.zeros((n_chunks, m.shape[0], K.N_GRAD), m.dtype)
-        f = lambda g: g.detach().to(dt).contiguous().numpy()  # noqa: E731
-        K.composite_backward(m, co, op, cl, dp, r, offsets, ids, width, height, tile, alpha, last,
-                             f(g_rgb), f(g_depth), f(g_alpha), n_chunks, grads)
-        G = torch.from_numpy(grads.sum(0))
-        if ctx.absgrad is not None:
-            ctx.absgrad += G[:, [K.G_AX, K.G_AY]].to(ctx.absgrad.dtype)
-        return (G[:, [K.G_MX, K.G_MY]], G[:, [K.G_A, K.G_B, K.G_C]], G[:, K.G_OP], G[:, [K.G_R, K.G_G, K.G_BL]],
-                G[:, K.G_Z], None, None, None, None, None)
+        P, order, offsets, ids, g_off, g_ent, work, T_final, last = ctx.np_inputs
+        width, height, tile, dt, n, n_workers = ctx.meta
+        tdt = torch.from_numpy(np.empty(0, dt)).dtype
+        w_off, w_tiles = K.assign_tiles(work, n_workers)
+        f = lambda g: g.detach().to(tdt).contiguous().numpy()  # noqa: E731
+        gbuf = np.empty((ids.shape[0], K.N_GRAD))
+        K.composite_backward(P, offsets, ids, w_off, w_tiles, width, height, tile, T_final, last, f(g_rgb),
+                             f(g_depth), f(g_alpha), gbuf)
+        gm, gc, go, gcl, gd = (np.empty(s, dt) for s in ((n, 2), (n, 3), (n,), (n, 3), (n,)))
+        ab = ctx.absgrad
+        direct = ab is not None and ab.dtype == tdt and ab.is_contiguous() and tuple(ab.shape) == (n, 2)
+        ab_np = ab.detach().numpy() if direct else np.zeros((0 if ab is None else n, 2), dt)
+        K.reduce_gradients(order, g_off, g_ent, gbuf, gm, gc, go, gcl, gd, ab_np)
+        if ab is not None and not direct:
+            ab += torch.from_numpy(ab_np).to(ab.dtype)
+        return (torch.from_numpy(gm), torch.from_numpy(gc), torch.from_numpy(go), torch.from_numpy(gcl),
+                torch.from_numpy(gd), None, None, None, None, None)
 
 
 def footprint_radius(conics: Tensor, opacities: Tensor, radii: Tensor) -> Tensor:
     """Half-size (pixels, int64) of the square outside which a Gaussian's alpha is below 1/255:
     alpha = o exp(-d^2 / 2) >= 1/255 needs the Mahalanobis distance d <= sqrt(2 ln(255 o)), and
-    that ellipse fits in a square of half-size d sqrt(lambda_max(cov2d)). 0 where ``radii`` <= 0
+    that ellipse fits in a square of half-size d sqrt(lambda_max(cov2d)) (the compositor now
+    uses the ellipse itself, ``_raster_kernels.footprints``; this square stays as its bound). 0 where ``radii`` <= 0
     or o < 1/255. With it, no contribution the compositing rules keep is ever cut off, so the
     image does not depend on tiles or bounding boxes."""
     a, b, c = conics.unbind(-1)
@@ -80,10 +95,11 @@ def composite(means2d: Float[Tensor, "N 2"], conics: Float[Tensor, "N 3"], opaci
     """Alpha-composite N projected Gaussians front to back into an H x W image.
 
     means2d: pixel coordinates (pixel centres at integer + 0.5); conics: (a, b, c) of the inverse
-    2D covariance [[a, b], [b, c]]; radii [N] (int): <= 0 culls (the pixels a Gaussian reaches
-    are set by :func:`footprint_radius`, exactly those where its alpha can pass 1/255);
-    colors may exceed [0, 1]
-    (no clamping here). float32 or float64 (all inputs the same dtype).
+    2D covariance [[a, b], [b, c]]; radii [N] (int): <= 0 culls (the pixels a Gaussian visits
+    are those of its ellipse where alpha can pass 1/255, ``_raster_kernels.footprints``; a
+    subset of :func:`footprint_radius`'s square); colors may exceed [0, 1] (no clamping here).
+    float32 or float64 (all inputs the same dtype). Outputs and gradients are deterministic and
+    do not depend on the number of numba threads.
     """
     n = means2d.shape[0]
     for name, t, shape in (("conics", conics, (n, 3)), ("opacities", opacities, (n,)), ("colors", colors, (n, 3)),

@@ -57,9 +57,10 @@ class MeshAnchoredStrategy:
         if state["grad_sum"] is None or state["grad_sum"].shape[0] != n:
             state["grad_sum"] = torch.zeros(n, dtype=torch.float64)
             state["count"] = torch.zeros(n, dtype=torch.float64)
-        vis = radii > 0
-        state["grad_sum"][vis] += absgrad[vis].norm(dim=-1).double() * 0.5 * image_size
-        state["count"][vis] += 1
+        vis = radii > 0  # (masked adds written as where: adding 0 elsewhere is exact, and cheaper than masking)
+        g = absgrad.norm(dim=-1).double() * 0.5 * image_size
+        state["grad_sum"] += torch.where(vis, g, 0.0)
+        state["count"] += vis
 
     def step_post_optimizer(self, state: dict, step: int, p: AnchoredParams, frames: FaceFrames, scales: Tensor,
                             opt: torch.optim.Adam, gen: torch.Generator, allow_densify: bool = True,
