@@ -4,10 +4,14 @@ them by: the ``sdf`` stage of the default scene run once per variant (Hydra over
 ``conf/sdf``) into a scratch directory (``out/`` is untouched; the capture is linked from it),
 ``--jobs`` at a time with ``--threads`` threads each, so every variant is timed alike.
 
-Writes ``<out>/sdf_tradeoff.csv`` (one row per variant and evaluation: step, training seconds,
-Chamfer-L1, F@1cm, F@2cm of the quick mesh, test depth L1) and ``sdf_tradeoff.png`` (Chamfer and
-F@1cm against training seconds; the seeds of the default drawn in grey), and prints the final
-row of each variant next to the default's seed spread.
+The full runs' own clocks are not comparable when the machine's load changes between them, so
+the time axis is ``step x seconds per step``, the cost per step of each variant measured side by
+side afterwards (``--cost-steps`` steps per variant, the variants alternating, ``--cost-rounds``
+rounds, the median taken). Writes ``<out>/sdf_tradeoff.csv`` (one row per variant and
+evaluation: step, measured training seconds, comparable seconds, Chamfer-L1, F@1cm, F@2cm of the
+quick mesh, test depth L1) and ``sdf_tradeoff.png`` (Chamfer and F@1cm against the comparable
+seconds; the default's other seeds in grey), and prints the final row of each variant next to
+the default's seed spread.
 
     python scripts/sdf_tradeoff.py [--jobs 2] [--threads 1] [--out reports/speed] [--only default_s1 cache_50]
 """
@@ -35,10 +39,8 @@ VARIANTS = {
 }
 
 
-def run_variant(name: str, overrides: list[str], scratch: Path, threads: int, reuse: bool = False) -> dict:
-    out = scratch / name
-    if reuse and (out / SCENE / "sdf" / "metrics.json").is_file():
-        return read_variant(name, out, None)
+def run_stage(out: Path, overrides: list[str], threads: int) -> float:
+    """The sdf stage into ``out`` (the capture linked from out/); its wall seconds."""
     (out / SCENE).mkdir(parents=True, exist_ok=True)
     if not (out / SCENE / "capture").exists():
         (out / SCENE / "capture").symlink_to(ROOT / "out" / SCENE / "capture")
@@ -47,10 +49,16 @@ def run_variant(name: str, overrides: list[str], scratch: Path, threads: int, re
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "stages.sdf", "-cn", "dvc_stage", f"scene={SCENE}", f"paths.out={out}",
                         *overrides], cwd=ROOT, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
     if r.returncode != 0:
-        raise SystemExit(f"{name}: the sdf stage failed (exit {r.returncode}):\n{r.stderr[-2000:]}")
-    return read_variant(name, out, wall)
+        raise SystemExit(f"{out.name}: the sdf stage failed (exit {r.returncode}):\n{r.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def run_variant(name: str, overrides: list[str], scratch: Path, threads: int, reuse: bool = False) -> dict:
+    out = scratch / name
+    if reuse and (out / SCENE / "sdf" / "metrics.json").is_file():
+        return read_variant(name, out, None)
+    return read_variant(name, out, run_stage(out, overrides, threads))
 
 
 def read_variant(name: str, out: Path, wall: float | None) -> dict:
@@ -63,6 +71,22 @@ def read_variant(name: str, out: Path, wall: float | None) -> dict:
     return {"rows": rows, "wall": wall, "metrics": m}
 
 
+def step_costs(names: list[str], scratch: Path, threads: int, steps: int, rounds: int) -> dict[str, float]:
+    """Seconds per training step of each variant, measured alike: short runs (``steps`` steps, no
+    evaluation), the variants alternating, ``rounds`` rounds, the median."""
+    import statistics
+
+    per: dict[str, list[float]] = {n: [] for n in names}
+    for _ in range(rounds):
+        for n in names:
+            o = [x for x in VARIANTS[n] if not x.startswith("sdf.neural.steps=")]
+            out = scratch / f"cost_{n}"
+            run_stage(out, [*o, f"sdf.neural.steps={steps}", f"sdf.neural.eval_every={10 * steps}"], threads)
+            m = json.loads((out / SCENE / "sdf" / "metrics.json").read_text())
+            per[n].append(m["train_s"] / m["steps"])
+    return {n: statistics.median(v) for n, v in per.items()}
+
+
 def plot(results: dict, path: Path) -> None:
     import matplotlib
 
@@ -71,14 +95,15 @@ def plot(results: dict, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for name, res in results.items():
-        t = [float(r["wall_s"]) for r in res["rows"]]
+        t = [float(r["fair_s"]) for r in res["rows"]]
         seed = name.startswith("default_s") and name != "default_s0"
         kw = {"color": "0.6", "lw": 1, "label": "default, other seeds" if name == "default_s1" else None} if seed \
             else {"marker": "o", "ms": 3, "label": name}
         axes[0].plot(t, [1000 * float(r["chamfer_l1"]) for r in res["rows"]], **kw)
         axes[1].plot(t, [float(r["fscore_1cm"]) for r in res["rows"]], **kw)
-    axes[0].set(xlabel="training s", ylabel="Chamfer-L1 (mm)", title="quick mesh (2 cm cell) vs GT")
-    axes[1].set(xlabel="training s", ylabel="F@1cm")
+    axes[0].set(xlabel="steps x s/step (measured side by side)", ylabel="Chamfer-L1 (mm)",
+                title="quick mesh (2 cm cell) vs GT")
+    axes[1].set(xlabel="steps x s/step (measured side by side)", ylabel="F@1cm")
     axes[0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -91,6 +116,8 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--scratch", type=Path, default=Path("/tmp/drawer_sdf_tradeoff"))
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "speed")
+    ap.add_argument("--cost-steps", type=int, default=60, help="steps of each cost run")
+    ap.add_argument("--cost-rounds", type=int, default=2)
     ap.add_argument("--reuse", action="store_true", help="read a variant's finished run in --scratch instead of rerunning it")
     ap.add_argument("--only", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
     args = ap.parse_args()
@@ -99,8 +126,12 @@ def main() -> None:
     with ThreadPoolExecutor(args.jobs) as ex:
         futs = {n: ex.submit(run_variant, n, VARIANTS[n], args.scratch, args.threads, args.reuse) for n in args.only}
         results = {n: f.result() for n, f in futs.items()}
+    cost = step_costs(list(results), args.scratch, args.threads, args.cost_steps, args.cost_rounds)
+    for n, res in results.items():
+        for r in res["rows"]:
+            r["fair_s"] = round(int(r["step"]) * cost[n], 2)
     args.out.mkdir(parents=True, exist_ok=True)
-    keys = ["variant", "step", "wall_s", "chamfer_l1", "fscore_1cm", "fscore_2cm", "test_depth_l1"]
+    keys = ["variant", "step", "wall_s", "fair_s", "chamfer_l1", "fscore_1cm", "fscore_2cm", "test_depth_l1"]
     with open(args.out / "sdf_tradeoff.csv", "w", newline="") as f:
         w = csv.DictWriter(f, keys, extrasaction="ignore")
         w.writeheader()
@@ -108,10 +139,10 @@ def main() -> None:
             w.writerows(res["rows"])
     plot(results, args.out / "sdf_tradeoff.png")
     seeds = [r["metrics"] for n, r in results.items() if n.startswith("default_s")]
-    print(f"\n{'variant':<24} {'steps':>5} {'train s':>8} {'chamfer mm':>10} {'F@1cm':>6} {'F@2cm':>6}")
+    print(f"\n{'variant':<24} {'steps':>5} {'ms/step':>8} {'steps x s/step':>14} {'chamfer mm':>10} {'F@1cm':>6} {'F@2cm':>6}")
     for n, r in results.items():
         m = r["metrics"]
-        print(f"{n:<24} {m['steps']:>5} {m['train_s']:>8.0f} {1000 * m['quick_chamfer_l1']:>10.2f} "
+        print(f"{n:<24} {m['steps']:>5} {1000 * cost[n]:>8.0f} {m['steps'] * cost[n]:>14.0f} {1000 * m['quick_chamfer_l1']:>10.2f} "
               f"{m['quick_fscore_1cm']:>6.3f} {m['quick_fscore_2cm']:>6.3f}")
     if len(seeds) > 1:
         for k in ("quick_chamfer_l1", "quick_fscore_1cm", "quick_fscore_2cm"):
