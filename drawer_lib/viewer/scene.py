@@ -26,7 +26,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import trimesh
-from jaxtyping import Float, Int
+from jaxtyping import Float
 
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_to_matrix
