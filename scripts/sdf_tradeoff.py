@@ -36,35 +36,44 @@ VARIANTS = {
     "samples_12": ["sdf.neural.sampling.fine=8", "sdf.neural.sampling.uniform=4"],
     "steps_800": ["sdf.neural.steps=800"],
     "steps_800_samples_12": ["sdf.neural.steps=800", "sdf.neural.sampling.fine=8", "sdf.neural.sampling.uniform=4"],
+    **{f"default_s{k}": [f"seed={k}"] for k in range(3, 5)},
+    **{f"steps_800_s{k}": ["sdf.neural.steps=800", f"seed={k}"] for k in range(1, 5)},
 }
 
 
-def run_stage(out: Path, overrides: list[str], threads: int) -> float:
-    """The sdf stage into ``out`` (the capture linked from out/); its wall seconds."""
+def run_stage(out: Path, overrides: list[str], threads: int, stage: str = "sdf") -> float:
+    """The ``sdf`` (or ``mesh``) stage into ``out`` (the capture linked from out/); its wall seconds."""
     (out / SCENE).mkdir(parents=True, exist_ok=True)
     if not (out / SCENE / "capture").exists():
         (out / SCENE / "capture").symlink_to(ROOT / "out" / SCENE / "capture")
     t = str(threads)
     env = {**os.environ, "OMP_NUM_THREADS": t, "MKL_NUM_THREADS": t, "NUMBA_NUM_THREADS": t, "PYTHONPATH": str(ROOT)}
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "stages.sdf", "-cn", "dvc_stage", f"scene={SCENE}", f"paths.out={out}",
+    r = subprocess.run([sys.executable, "-m", f"stages.{stage}", "-cn", "dvc_stage", f"scene={SCENE}", f"paths.out={out}",
                         *overrides], cwd=ROOT, env=env, capture_output=True, text=True)
     if r.returncode != 0:
-        raise SystemExit(f"{out.name}: the sdf stage failed (exit {r.returncode}):\n{r.stderr[-2000:]}")
+        raise SystemExit(f"{out.name}: the {stage} stage failed (exit {r.returncode}):\n{r.stderr[-2000:]}")
     return time.perf_counter() - t0
 
 
-def run_variant(name: str, overrides: list[str], scratch: Path, threads: int, reuse: bool = False) -> dict:
+def run_variant(name: str, overrides: list[str], scratch: Path, threads: int, reuse: bool = False,
+                mesh: bool = False) -> dict:
+    """One variant's sdf stage (and with ``mesh`` the mesh stage after it: the tracked metrics)."""
     out = scratch / name
-    if reuse and (out / SCENE / "sdf" / "metrics.json").is_file():
-        return read_variant(name, out, None)
-    return read_variant(name, out, run_stage(out, overrides, threads))
+    if not (reuse and (out / SCENE / "sdf" / "metrics.json").is_file()):
+        run_stage(out, overrides, threads)
+    if mesh and not (reuse and (out / SCENE / "mesh" / "metrics.json").is_file()):
+        run_stage(out, [o for o in overrides if o.startswith("seed=")], threads, stage="mesh")
+    return read_variant(name, out, None)
 
 
 def read_variant(name: str, out: Path, wall: float | None) -> dict:
     with open(out / SCENE / "sdf" / "curve.csv") as f:
         rows = [dict(variant=name, **row) for row in csv.DictReader(f)]
     m = json.loads((out / SCENE / "sdf" / "metrics.json").read_text())
+    mesh = out / SCENE / "mesh" / "metrics.json"
+    if mesh.is_file():
+        m["mesh"] = json.loads(mesh.read_text())
     wall = m["wall_s"] if wall is None else wall
     print(f"{name}: {m['steps']} steps, {m['train_s']:.0f} s training, {wall:.0f} s stage, "
           f"chamfer {1000 * m['quick_chamfer_l1']:.2f} mm, F@1cm {m['quick_fscore_1cm']:.3f}", flush=True)
@@ -120,11 +129,12 @@ def main() -> None:
     ap.add_argument("--cost-rounds", type=int, default=2)
     ap.add_argument("--reuse", action="store_true", help="read a variant's finished run in --scratch instead of rerunning it")
     ap.add_argument("--only", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
+    ap.add_argument("--mesh", action="store_true", help="also run the mesh stage per variant: the tracked metrics")
     args = ap.parse_args()
     if not (ROOT / "out" / SCENE / "capture" / "transforms.json").is_file():
         raise SystemExit(f"out/{SCENE}/capture: missing; run `dvc repro capture@{SCENE}` first")
     with ThreadPoolExecutor(args.jobs) as ex:
-        futs = {n: ex.submit(run_variant, n, VARIANTS[n], args.scratch, args.threads, args.reuse) for n in args.only}
+        futs = {n: ex.submit(run_variant, n, VARIANTS[n], args.scratch, args.threads, args.reuse, args.mesh) for n in args.only}
         results = {n: f.result() for n, f in futs.items()}
     cost = step_costs(list(results), args.scratch, args.threads, args.cost_steps, args.cost_rounds)
     for n, res in results.items():
@@ -148,6 +158,18 @@ def main() -> None:
         for k in ("quick_chamfer_l1", "quick_fscore_1cm", "quick_fscore_2cm"):
             v = [m[k] for m in seeds]
             print(f"seed spread of {k}: {min(v):.4g} - {max(v):.4g} ({len(v)} seeds)")
+    meshed = {n: r["metrics"]["mesh"] for n, r in results.items() if "mesh" in r["metrics"]}
+    if meshed:
+        keys = [k for k in ("chamfer_l1", "fscore_1cm", "fscore_2cm", "normal_consistency") if k in next(iter(meshed.values()))]
+        print(f"\nthe mesh stage (tracked metrics)\n{'variant':<24} " + " ".join(f"{k:>18}" for k in keys))
+        for n, mm in meshed.items():
+            print(f"{n:<24} " + " ".join(f"{mm[k]:>18.5g}" for k in keys))
+        for prefix in ("default_s", "steps_800"):
+            group = [mm for n, mm in meshed.items() if n.startswith(prefix)]
+            if len(group) > 1:
+                print(f"{prefix}* ({len(group)} seeds): " + ", ".join(
+                    f"{k} {min(g[k] for g in group):.5g} - {max(g[k] for g in group):.5g} (mean {sum(g[k] for g in group) / len(group):.5g})"
+                    for k in keys))
     print(f"\n{args.out / 'sdf_tradeoff.csv'}, {args.out / 'sdf_tradeoff.png'}")
 
 

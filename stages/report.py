@@ -1,7 +1,7 @@
 """DVC stage ``report``: every tracked metric of the last ``dvc repro`` -> ``<paths.reports>/``
 ``index.html`` (one self-contained offline page), ``summary.md`` and ``extremes.json`` (the
-numerical-extremes tests, run now, and the report's own wall time); see
-drawer_lib/report/dashboard.py.
+report's metrics: the numerical-extremes tests' count from the ``extremes`` stage, the page's
+size, its own wall time); see drawer_lib/report/dashboard.py.
 
     python -m stages.report -cn dvc_stage
 """
@@ -15,14 +15,12 @@ from drawer_lib.paths import LAYOUT
 from drawer_lib.report.dashboard import run_report
 from drawer_lib.runner import main_guard
 
-ROOT = Path(__file__).resolve().parent.parent
-
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 @main_guard
 def main(cfg: DictConfig) -> None:
     m = run_report(Path(cfg.paths.out), Path(cfg.paths.reports), list(cfg.scenes), list(cfg.geometry_variants),
-                   list(cfg.appearance_variants), ROOT, bool(cfg.report.extremes), float(cfg.report.extremes_timeout))
+                   list(cfg.appearance_variants))
     print(f"report: {Path(cfg.paths.reports) / LAYOUT['report']['index']} ({m['page_kb']:.0f} KiB), extremes "
           f"{m['extremes_passed']}/{m['extremes_n']} passed, {m['n_skipped']} skips listed")
 

@@ -136,6 +136,22 @@ def test_run_extremes_reports_each_tests_outcome(tmp_path, monkeypatch):
     assert "stale" in res[1].message
 
 
+def test_extremes_stage_table_and_what_the_report_reads(tmp_path, monkeypatch):
+    import drawer_lib.report.extremes as ex
+
+    reports = tmp_path / "reports"
+    assert ex.read_extremes(reports)[0] is None and "has not run" in ex.read_extremes(reports)[1]
+    m = ex.extremes_stage(ROOT, reports, enabled=False)
+    assert m["extremes_n"] == 0 and m["skipped"] == {"extremes": "report.extremes = false"}
+    assert ex.read_extremes(reports) == (None, "report.extremes = false")
+    monkeypatch.setattr(ex, "ROWS", (ROWS[0],))
+    m = ex.extremes_stage(ROOT, reports, enabled=True)
+    assert (m["extremes_passed"], m["extremes_n"]) == (1, 1) and "skipped" not in m
+    rows, why = ex.read_extremes(reports)
+    assert why is None and [r["outcome"] for r in rows] == ["passed"] and rows[0]["test"] == ROWS[0][2]
+    assert [p.name for p in (reports / "extremes").iterdir()] == ["table.json"]  # no temporary file left
+
+
 def _chromium():
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
     if exe is None:

@@ -9,7 +9,7 @@ own figures and interaction probes); ``opened`` (opened-state NVS); ``stability`
 choice, the extremes it does not handle); ``time`` (every iterative stage's error against wall
 time: SDF Chamfer, appearance PSNR, the stability matrix; and the swept grid's Pareto fronts
 with the best setting per budget, when the ``pareto`` stage ran); ``stages`` (per-stage wall time and
-peak memory); ``extremes`` (the numerical-extremes tests, run now); ``skipped`` (everything
+peak memory); ``extremes`` (the numerical-extremes tests, run by the ``extremes`` stage); ``skipped`` (everything
 skipped, with its reason).
 
 :func:`collect` reads ``out/`` and ``reports/``; :func:`render` turns that into (html, md).
@@ -484,28 +484,23 @@ def write_text_atomic(files: dict[Path, str]) -> None:
 
 
 def run_report(out: Path, reports: Path, scenes: list[str], geometry_variants: list[str],
-               appearance_variants: list[str], root: Path, extremes: bool = True,
-               extremes_timeout: float = 900.0) -> dict:
-    """The ``report`` stage: collect, run the numerical-extremes tests from the project
-    ``root`` (unless ``extremes`` is false), write ``index.html``, ``summary.md`` and
-    ``extremes.json`` (the report's metrics) into ``reports``; returns those metrics."""
-    import tempfile
+               appearance_variants: list[str]) -> dict:
+    """The ``report`` stage: collect (the numerical-extremes tests' outcomes from the ``extremes``
+    stage's table), write ``index.html``, ``summary.md`` and ``extremes.json`` (the report's
+    metrics) into ``reports``; returns those metrics."""
     import time
 
     from drawer_lib.errors import InputError
     from drawer_lib.io.images import write_json
-    from drawer_lib.report.extremes import as_dicts, run_extremes
+    from drawer_lib.report.extremes import read_extremes
     from drawer_lib.runner import peak_rss_mb
 
     t0 = time.perf_counter()
     reports, out = Path(reports), Path(out)
-    why = None if extremes else "report.extremes = false"
-    data = collect(out, reports, scenes, geometry_variants, appearance_variants, None, why)
+    extremes, why = read_extremes(reports)
+    data = collect(out, reports, scenes, geometry_variants, appearance_variants, extremes, why)
     if not any(sc.metrics for sc in data.scenes):
         raise InputError(f"report: no stage metrics under {out}/ for scenes {scenes} (run dvc repro first)")
-    if extremes:
-        with tempfile.TemporaryDirectory() as scratch:
-            data.extremes = as_dicts(run_extremes(root, Path(scratch), extremes_timeout))
     rows = data.extremes or []
     page, md = render(data)
     write_text_atomic({reports / LAYOUT["report"]["index"]: page, reports / LAYOUT["report"]["summary"]: md})
@@ -513,5 +508,5 @@ def run_report(out: Path, reports: Path, scenes: list[str], geometry_variants: l
                "n_skipped": len(data.skipped), "page_kb": round(len(page.encode()) / 1024, 1),
                "wall_s": round(time.perf_counter() - t0, 3), "peak_rss_mb": round(peak_rss_mb(), 1)}
     write_json(reports / LAYOUT["report"]["extremes"],
-               metrics | {"rows": rows, **({"skipped": {"extremes": why}} if why else {})})
+               metrics | ({"skipped": {"extremes": why}} if why else {}))
     return metrics

@@ -6,6 +6,7 @@ meets, the test that checks it, and that test's result *now* (the tests are run 
 (``tests/test_report.py``) checks that every node id still names a collected test.
 """
 
+import json
 import subprocess
 import sys
 import time
@@ -14,6 +15,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from drawer_lib.errors import InputError
+from drawer_lib.paths import LAYOUT
+
+DIR = "extremes"  # the stage's folder inside reports/
 
 ROWS: tuple[tuple[str, str, str], ...] = (
     ("SDF density at β = 1e-5, |s| = 1e3", "density and its gradient finite, σ → 1/β inside, 0 outside",
@@ -118,3 +122,44 @@ def run_extremes(root: Path, scratch: Path, timeout: float = 900.0) -> list[Extr
 
 def as_dicts(rows: list[ExtremeResult]) -> list[dict]:
     return [asdict(r) for r in rows]
+
+
+def extremes_stage(root: Path, reports: Path, enabled: bool = True, timeout: float = 900.0) -> dict:
+    """The ``extremes`` stage: run the tests of :data:`ROWS` from the project ``root`` (unless
+    ``enabled`` is false) and write ``<reports>/extremes/table.json`` (``extremes_passed``,
+    ``extremes_n``, ``rows``, ``wall_s``; ``skipped`` when not run), swapped in whole. A stage of
+    its own, so the report does not rerun the tests when only metrics changed, and the tests do
+    not wait for the pipeline (they depend on the code and the tests alone)."""
+    import tempfile
+
+    from drawer_lib.io.images import write_json
+    from drawer_lib.runner import peak_rss_mb
+
+    t0 = time.perf_counter()
+    why = None if enabled else "report.extremes = false"
+    rows: list[dict] = []
+    if enabled:
+        with tempfile.TemporaryDirectory() as scratch:
+            rows = as_dicts(run_extremes(root, Path(scratch), timeout))
+    m = {"extremes_passed": sum(r["outcome"] == "passed" for r in rows), "extremes_n": len(rows), "rows": rows,
+         "wall_s": round(time.perf_counter() - t0, 3), "peak_rss_mb": round(peak_rss_mb(), 1)}
+    if why:
+        m["skipped"] = {"extremes": why}
+    path = Path(reports) / DIR / LAYOUT["report"]["table_json"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    write_json(tmp, m)
+    tmp.replace(path)
+    return m
+
+
+def read_extremes(reports: Path) -> tuple[list[dict] | None, str | None]:
+    """(rows, why not) from the ``extremes`` stage's table: rows None with the reason when the
+    tests were not run or the stage has not run."""
+    path = Path(reports) / DIR / LAYOUT["report"]["table_json"]
+    try:
+        m = json.loads(path.read_text())
+    except FileNotFoundError:
+        return None, f"{path}: missing (the extremes stage has not run)"
+    why = (m.get("skipped") or {}).get("extremes")
+    return (None, why) if why else (m["rows"], None)
