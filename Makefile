@@ -35,10 +35,10 @@ $(VENV)/.installed: pyproject.toml Makefile
 	touch $@
 
 CI_DIR ?= /tmp/drawer_ci
-ci-dashboard: setup ## the quick experiment (kitchen_tiny) in a clone of HEAD, its dashboard against .ci/baseline_quick.json
+ci-dashboard: setup ## the quick experiment (kitchen_tiny) in a clone of HEAD, built as `make run` builds, its dashboard against .ci/baseline_quick.json
 	rm -rf $(CI_DIR) && git clone -q . $(CI_DIR) && ln -s $(abspath $(VENV)) $(CI_DIR)/.venv
 	cd $(CI_DIR) && $(BIN)/python scripts/compose_params.py experiment=quick
-	cd $(CI_DIR) && PATH="$(abspath $(BIN)):$$PATH" $(BIN)/dvc repro -q
+	cd $(CI_DIR) && PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS)
 	mkdir -p reports/ci
 	cd $(CI_DIR) && $(BIN)/python scripts/ci_dashboard.py; rc=$$?; cp -r $(CI_DIR)/reports/ci/. $(CURDIR)/reports/ci/; exit $$rc
 

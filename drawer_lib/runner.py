@@ -2,7 +2,7 @@
 
 ``with stage_run("capture", out_dir, seed=cfg.seed) as run:`` gives a fresh temporary directory
 ``run.dir`` to write into, a seeded ``run.rng``, progress bars, a ``curve.csv`` helper and a
-``metrics`` dict. On success it adds ``wall_s`` and ``peak_rss_mb``, refuses non-finite metrics,
+``metrics`` dict. On success it adds ``wall_s``, ``peak_rss_mb`` and ``threads``, refuses non-finite metrics,
 writes ``metrics.json`` and swaps the temporary directory into place in one rename; on any error
 the temporary directory is removed and the previous output is left untouched, so an interrupted
 stage never leaves anything DVC could mistake for a result.
@@ -44,6 +44,16 @@ def seed_everything(seed: int) -> np.random.Generator:
     if "torch" in sys.modules:
         sys.modules["torch"].manual_seed(seed)
     return np.random.default_rng(seed)
+
+
+def thread_cap() -> int:
+    """The threads this process's torch / numba pools may use: ``OMP_NUM_THREADS`` when set (what
+    ``make run`` sets per stage), else every core. Part of a result's provenance: the thread
+    count changes the order of float sums in parallel reductions."""
+    try:
+        return max(1, int(os.environ["OMP_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return os.cpu_count() or 1
 
 
 def peak_rss_mb() -> float:
@@ -138,6 +148,7 @@ class StageRun:
                 raise NonFiniteError(f"{self.stage}: metric {k} = {v}")
         m["wall_s"] = round(self.elapsed(), 4)
         m["peak_rss_mb"] = round(peak_rss_mb(), 1)
+        m["threads"] = thread_cap()
         if self.skipped:
             m["skipped"] = dict(self.skipped)
         write_json(self.dir / LAYOUT["metrics"], m)

@@ -297,8 +297,9 @@ def repro(root: Path, jobs: int = 2, threads: int | None = None, targets: list[s
     report(f"{len(plan.stages)} stage(s) to run, {jobs} at a time, {threads} thread(s) each "
            f"(the longest remaining path first); logs in {log_dir}")
     if dry:
-        for s in plan.stages:
-            report(f"  {s:<48} after {', '.join(sorted(plan.needs[s])) or '-'}")
+        for s in plan.stages:   # the nearest stages it waits for (the rest follows from theirs)
+            near = {n for n in plan.needs[s] if not any(n in plan.needs[m] for m in plan.needs[s])}
+            report(f"  {s:<48} ~{plan.rank[s]:5.0f} s to the end; after {', '.join(sorted(near)) or '-'}")
         return 0
     log_dir.mkdir(parents=True, exist_ok=True)
     env = thread_env(threads)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from helpers import ROOT
 
-TIMING = {"wall_s", "peak_rss_mb", "train_s", "prepare_s", "views_s", "bake_s", "marching_cubes_s", "clean_s",
+TIMING = {"wall_s", "peak_rss_mb", "threads", "train_s", "prepare_s", "views_s", "bake_s", "marching_cubes_s", "clean_s",
           "sfm_s", "video_total_s", "within_budget"}
 THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
 

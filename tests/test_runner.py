@@ -1,11 +1,12 @@
 import json
 import math
+import os
 
 import pytest
 
 from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.io.manifest import Manifest
-from drawer_lib.runner import main_guard, stage_run
+from drawer_lib.runner import main_guard, stage_run, thread_cap
 
 
 def test_outputs_appear_atomically_with_metrics(tmp_path):
@@ -21,6 +22,7 @@ def test_outputs_appear_atomically_with_metrics(tmp_path):
         a = run.rng.random()
     m = json.loads((out / "metrics.json").read_text())
     assert m["err"] == 0.5 and m["wall_s"] >= 0 and m["peak_rss_mb"] > 10
+    assert m["threads"] == thread_cap() >= 1
     assert m["skipped"] == {"ea_score": "no revolute parts"}
     rows = (out / "curve.csv").read_text().splitlines()
     assert rows[0] == "step,wall_s,err" and rows[2].startswith("10,")
@@ -117,3 +119,12 @@ def test_a_terminated_stage_removes_its_temporary_folder(tmp_path):
     t = time.perf_counter()
     assert p.returncode != 0 and time.perf_counter() - t < 30
     assert sorted(x.name for x in (tmp_path / "s").iterdir()) == []
+
+
+def test_thread_cap_reads_the_environment(monkeypatch):
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")
+    assert thread_cap() == 3
+    monkeypatch.setenv("OMP_NUM_THREADS", "junk")
+    assert thread_cap() == (os.cpu_count() or 1)
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    assert thread_cap() == (os.cpu_count() or 1)

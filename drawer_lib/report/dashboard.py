@@ -367,10 +367,11 @@ def _pareto(sc: SceneData) -> Table:
 
 
 def _stages(data: ReportData) -> Table:
-    t = Table(["scene", "stage", "wall (s)", "peak memory (MiB)"], [])
+    t = Table(["scene", "stage", "wall (s)", "peak memory (MiB)", "threads"], [])
     for sc in data.scenes:
         for k, m in sc.metrics.items():
-            t.rows.append([sc.name, k, _f(m.get("wall_s"), ".1f"), _f(m.get("peak_rss_mb"), ".0f")])
+            t.rows.append([sc.name, k, _f(m.get("wall_s"), ".1f"), _f(m.get("peak_rss_mb"), ".0f"),
+                           str(m["threads"]) if "threads" in m else "-"])
     return t
 
 
