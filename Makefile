@@ -10,9 +10,10 @@ export PYTHONUNBUFFERED := 1
 .PHONY: run test test-all ci-dashboard setup system-deps params check-params bench profile bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study view bench-viewer clean
 
 RUN_JOBS ?= 2
-run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline: dvc repro with RUN_JOBS independent stages at once (scripts/repro.py)
+RUN_ARGS ?=
+run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline: dvc repro with RUN_JOBS independent stages at once (scripts/repro.py; RUN_ARGS="--force" reruns all, "--dry" plans)
 	$(BIN)/python scripts/compose_params.py
-	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS)
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS) $(RUN_ARGS)
 
 test: setup ## set up and run the test suite (not the slow benchmarks)
 	$(BIN)/python -m pytest

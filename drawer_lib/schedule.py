@@ -283,14 +283,16 @@ def dvc_graph(root: Path) -> tuple[dict[str, frozenset[str]], set[str], dict[str
 
 
 def repro(root: Path, jobs: int = 2, threads: int | None = None, targets: list[str] | None = None,
-          log_dir: Path | None = None, dry: bool = False, report: Callable[[str], None] = print) -> int:
-    """Plan and run the project at ``root`` (see the module docstring); the exit code."""
+          log_dir: Path | None = None, dry: bool = False, force: bool = False,
+          report: Callable[[str], None] = print) -> int:
+    """Plan and run the project at ``root`` (see the module docstring); the exit code. ``force``:
+    every stage (of ``targets``) runs, none is restored from the run-cache (``dvc repro -f``)."""
     cores = os.cpu_count() or 1
     threads = threads or max(1, cores // jobs)
     log_dir = log_dir or root / "logs" / "repro"
     t0 = time.perf_counter()
     deps, changed, cost = dvc_graph(root)
-    plan = make_plan(deps, changed, cost, targets)
+    plan = make_plan(deps, set(deps) if force else changed, cost, targets)
     if not plan.stages:
         report(f"Data and pipelines are up to date ({time.perf_counter() - t0:.1f} s).")
         return 0
@@ -304,7 +306,7 @@ def repro(root: Path, jobs: int = 2, threads: int | None = None, targets: list[s
     log_dir.mkdir(parents=True, exist_ok=True)
     env = thread_env(threads)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"   # the stages' `python`
-    dvc = [sys.executable, "-m", "dvc", "--wait-for-lock", "repro", "--single-item"]
+    dvc = [sys.executable, "-m", "dvc", "--wait-for-lock", "repro", "--single-item", *(["--force"] if force else [])]
     logs: dict[str, Path] = {}
 
     def launch(stage: str) -> subprocess.Popen:

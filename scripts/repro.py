@@ -6,7 +6,7 @@ Plans the out-of-date stages with one ``dvc status`` and runs each as its own
 ``--threads`` threads each (default cores // jobs; the thread count is part of a result, so it
 never depends on timing). Logs per stage in ``logs/repro/``. See drawer_lib/schedule.py.
 
-    python scripts/repro.py [--jobs 2] [--threads N] [--dry] [stage ...]
+    python scripts/repro.py [--jobs 2] [--threads N] [--dry] [--force] [stage ...]
 """
 
 import argparse
@@ -23,6 +23,7 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2, help="stages at once (default 2)")
     ap.add_argument("--threads", type=int, default=None, help="threads per stage (default: cores // jobs)")
     ap.add_argument("--dry", action="store_true", help="print the plan, run nothing")
+    ap.add_argument("--force", action="store_true", help="run every stage, restore none from the run-cache (dvc repro -f)")
     ap.add_argument("--log-dir", type=Path, default=ROOT / "logs" / "repro")
     args = ap.parse_args()
     if args.jobs < 1 or (args.threads is not None and args.threads < 1):
@@ -31,7 +32,7 @@ def main() -> int:
 
     try:
         return repro(ROOT, jobs=args.jobs, threads=args.threads, targets=args.stages or None,
-                     log_dir=args.log_dir, dry=args.dry, report=lambda m: print(m, flush=True))
+                     log_dir=args.log_dir, dry=args.dry, force=args.force, report=lambda m: print(m, flush=True))
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

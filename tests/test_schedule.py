@@ -178,7 +178,12 @@ def test_repro_builds_a_dvc_project_two_stages_at_a_time(tmp_path):
     assert "up to date" in run(sys.executable, "-m", "dvc", "status").stdout
     msgs.clear()
     assert repro(d, jobs=2, report=msgs.append) == 0 and "up to date" in msgs[-1]
-    # the lock file is the one a plain `dvc repro -f` writes
+    # --force reruns everything (no run-cache restore)
+    t_a = (d / "a.json").stat().st_mtime_ns
+    msgs.clear()
+    assert repro(d, jobs=2, force=True, report=msgs.append) == 0
+    assert any("4 stage(s) to run" in m for m in msgs) and (d / "a.json").stat().st_mtime_ns != t_a
+    # the lock file is the one a plain `dvc repro` writes
     lock = (d / "dvc.lock").read_text()
     clone = tmp_path / "plain"
     shutil.copytree(d, clone, ignore=shutil.ignore_patterns("*.json", "dvc.lock"))
