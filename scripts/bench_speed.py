@@ -133,7 +133,7 @@ with initialize_config_dir(config_dir='{root}/conf', version_base='1.3'):
                   'appearance.steps=300', 'appearance.eval_every=1000000', 'appearance.strategy.refine_start=0'])
 app = to_typed(AppearanceConfig, cfg.appearance, 'appearance')
 cap = load_capture('{root}/out/{scene}/capture')
-sc = prepare(cap, trimesh.load('{root}/out/{scene}/mesh.ply', process=False), app)
+sc = prepare(cap, trimesh.load('{root}/out/{scene}/mesh/mesh.ply', process=False), app)
 stamps = []
 def progress(it, **kw):
     for x in it:

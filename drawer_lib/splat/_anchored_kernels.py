@@ -18,14 +18,22 @@ from numba import njit, prange
 if numba.config.THREADING_LAYER == "default":
     numba.config.THREADING_LAYER = "workqueue"
 
+# columns of the forward pass's per-Gaussian values kept for the backward pass (``aux``)
+A_CS, A_SS, A_CT, A_ST, A_CA, A_SA, A_S, A_O = 0, 1, 2, 3, 4, 5, 6, 9  # A_S..A_S + 2: the unclipped scales
+N_AUX = 10
+
 
 @njit(parallel=True, cache=True)
 @no_type_check
 def anchored_forward(means_2d, elevate, log_scales, angles, opacity_logit, face, A, xhat, yhat, normal, tri2d, radius,
                      q_face, elevate_coef, upper_scale, flat_coef, cone, clip,
-                     means, quats, scales, opac, pos2d, elev, tilt):
+                     means, quats, scales, opac, pos2d, elev, tilt, aux):
     """Outputs means [N, 3], quats [N, 4] (wxyz, unit), scales [N, 3], opac [N], pos2d [N, 2],
-    elev [N], tilt [N]; ``clip`` True: clipped values (ste), False: raw values (free)."""
+    elev [N], tilt [N]; ``clip`` True: clipped values (ste), False: raw values (free). ``aux``
+    [N, N_AUX] float64 (or [0, N_AUX]: not kept): the transcendental values the backward pass
+    needs (the half-angle cosines and sines, the unclipped scales, the opacity), so that it
+    does not evaluate them again."""
+    keep = aux.shape[0] > 0
     for i in prange(means_2d.shape[0]):
         f = face[i]
         R = float(radius[f])
@@ -60,6 +68,8 @@ def anchored_forward(means_2d, elevate, log_scales, angles, opacity_logit, face,
             means[i, k] = A[f, k] + u * xhat[f, k] + v * yhat[f, k] + e * normal[f, k]
         for k in range(3):
             s = math.exp(float(log_scales[i, k]))
+            if keep:
+                aux[i, A_S + k] = s
             if clip:
                 s = min(s, upper_scale * (R if k < 2 else flat_coef * R))
             scales[i, k] = s
@@ -80,30 +90,37 @@ def anchored_forward(means_2d, elevate, log_scales, angles, opacity_logit, face,
         quats[i, 1] = aw * bx + ax_ * bw + ay_ * bz - az * by
         quats[i, 2] = aw * by - ax_ * bz + ay_ * bw + az * bx
         quats[i, 3] = aw * bz + ax_ * by - ay_ * bx + az * bw
-        opac[i] = 1.0 / (1.0 + math.exp(-float(opacity_logit[i])))
+        o = 1.0 / (1.0 + math.exp(-float(opacity_logit[i])))
+        opac[i] = o
+        if keep:
+            aux[i, A_CS] = cs
+            aux[i, A_SS] = ss
+            aux[i, A_CT] = ct
+            aux[i, A_ST] = st
+            aux[i, A_CA] = ca
+            aux[i, A_SA] = sa
+            aux[i, A_O] = o
 
 
 @njit(parallel=True, cache=True)
 @no_type_check
-def anchored_backward(log_scales, angles, opacity_logit, face, xhat, yhat, normal, q_face, cone, clip,
+def anchored_backward(aux, face, xhat, yhat, normal, q_face,
                       g_means, g_quats, g_scales, g_opac, g_pos2d, g_elev, g_tilt,
                       gm2, ge, gls, gang, gol):
     """VJP of anchored_forward (identity through every clip) into gm2 [N, 2] (means_2d), ge [N]
-    (elevate), gls [N, 3] (log_scales), gang [N, 3] (angles), gol [N] (opacity_logit)."""
-    for i in prange(log_scales.shape[0]):
+    (elevate), gls [N, 3] (log_scales), gang [N, 3] (angles), gol [N] (opacity_logit), from the
+    forward pass's ``aux`` [N, N_AUX] (the same values it would recompute, so the same bits)."""
+    for i in prange(aux.shape[0]):
         f = face[i]
         gx, gy, gz = float(g_means[i, 0]), float(g_means[i, 1]), float(g_means[i, 2])
         gm2[i, 0] = gx * xhat[f, 0] + gy * xhat[f, 1] + gz * xhat[f, 2] + g_pos2d[i, 0]
         gm2[i, 1] = gx * yhat[f, 0] + gy * yhat[f, 1] + gz * yhat[f, 2] + g_pos2d[i, 1]
         ge[i] = gx * normal[f, 0] + gy * normal[f, 1] + gz * normal[f, 2] + g_elev[i]
         for k in range(3):
-            gls[i, k] = g_scales[i, k] * math.exp(float(log_scales[i, k]))  # d exp(x) / dx of the raw scale
-        th, al, phi = float(angles[i, 0]), float(angles[i, 1]), float(angles[i, 2])
-        if clip:
-            phi = min(max(phi, 0.0), cone)
-        cs, ss = math.cos(0.5 * th), math.sin(0.5 * th)
-        ct, st = math.cos(0.5 * phi), math.sin(0.5 * phi)
-        ca, sa = math.cos(al), math.sin(al)
+            gls[i, k] = g_scales[i, k] * aux[i, A_S + k]  # d exp(x) / dx of the raw scale
+        cs, ss = aux[i, A_CS], aux[i, A_SS]
+        ct, st = aux[i, A_CT], aux[i, A_ST]
+        ca, sa = aux[i, A_CA], aux[i, A_SA]
         aw, ax_, ay_, az = float(q_face[f, 0]), float(q_face[f, 1]), float(q_face[f, 2]), float(q_face[f, 3])
         qw, qx, qy, qz = float(g_quats[i, 0]), float(g_quats[i, 1]), float(g_quats[i, 2]), float(g_quats[i, 3])
         # q = a (x) b: gradient to b
@@ -123,5 +140,5 @@ def anchored_backward(log_scales, angles, opacity_logit, face, xhat, yhat, norma
         gang[i, 0] = gsw * (-0.5 * ss) + gsz * (0.5 * cs)
         gang[i, 1] = (-gtx * sa + gty * ca) * st
         gang[i, 2] = gtw * (-0.5 * st) + (gtx * ca + gty * sa) * (0.5 * ct) + g_tilt[i]
-        o = 1.0 / (1.0 + math.exp(-float(opacity_logit[i])))
+        o = aux[i, A_O]
         gol[i] = g_opac[i] * o * (1.0 - o)

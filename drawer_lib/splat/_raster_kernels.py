@@ -17,9 +17,12 @@ Per-pixel state and arithmetic are float64 (inputs float32 or float64). Every Ga
 once, in depth order, into a packed float64 row (``P``) so that a tile list walks contiguous
 memory. Tiles are dealt to the workers by longest-processing-time first (forward: by footprint
 area; backward: by the pixel visits the forward pass counted), a deterministic assignment.
-Backward writes one gradient row per (tile, Gaussian) list entry and a second pass sums each
-Gaussian's entries in tile order: no atomics, no races, and the result does not depend on the
-number of threads or on timing.
+The forward pass records each contribution (its exp(p) and pixel), so the backward pass walks
+exactly those, without the footprint rows, the tests or the exponentials (the same numbers, so
+the same gradients as recomputing them, which it still does when there is no record).
+Backward writes one gradient row per (tile, Gaussian) list entry, each Gaussian's rows
+adjacent, and a second pass sums each Gaussian's rows in tile order: no atomics, no races, and
+the result does not depend on the number of threads or on timing.
 """
 
 from typing import no_type_check
@@ -130,6 +133,51 @@ def _row_range(P, k, dy, px0, tw):
     return int(fa), int(max(fb, fa))
 
 
+@njit(cache=True)
+@no_type_check
+def depth_order(vis, depths):
+    """``vis`` [M] (int64) stably sorted by ``depths[vis]`` (float32 or float64): the same order as
+    ``vis[np.argsort(depths[vis], kind="stable")]``, NaNs last, -0.0 equal to 0.0, by an LSD
+    radix sort on the depths' bits mapped to unsigned integers of the same order (11-bit
+    digits; digits that all keys share are skipped)."""
+    M = vis.shape[0]
+    nbits = 8 * depths.itemsize
+    key = np.empty(M, np.uint64)
+    top = np.uint64(1) << np.uint64(nbits - 1)
+    full = (np.uint64(1) << np.uint64(nbits)) - np.uint64(1) if nbits < 64 else ~np.uint64(0)
+    for i in range(M):
+        d = depths[vis[i]]
+        if np.isnan(d):
+            key[i] = full
+            continue
+        if nbits == 32:
+            u = np.uint64(np.float32(d + np.float32(0.0)).view(np.uint32))
+        else:
+            u = np.float64(d + 0.0).view(np.uint64)
+        key[i] = (full ^ u) if (u & top) != np.uint64(0) else (u | top)
+    out = vis.copy()
+    tmp_k = np.empty(M, np.uint64)
+    tmp_o = np.empty(M, np.int64)
+    cnt = np.empty(2049, np.int64)
+    shift = 0
+    while shift < nbits:
+        cnt[:] = 0
+        for i in range(M):
+            cnt[((key[i] >> np.uint64(shift)) & np.uint64(2047)) + np.uint64(1)] += 1
+        if cnt.max() < M:  # (a digit shared by every key leaves the order as it is)
+            for b in range(2048):
+                cnt[b + 1] += cnt[b]
+            for i in range(M):
+                b = (key[i] >> np.uint64(shift)) & np.uint64(2047)
+                tmp_k[cnt[b]] = key[i]
+                tmp_o[cnt[b]] = out[i]
+                cnt[b] += 1
+            key, tmp_k = tmp_k, key
+            out, tmp_o = tmp_o, out
+        shift += 11
+    return out
+
+
 @njit(parallel=True, cache=True)
 @no_type_check
 def pack(order, means2d, conics, opacities, colors, depths, ext, P):
@@ -157,8 +205,9 @@ def pack(order, means2d, conics, opacities, colors, depths, ext, P):
 @no_type_check
 def bin_gaussians(P, width, height, tile):
     """Tile lists of the packed Gaussians P [M, N_P] (front to back): (offsets [n_tiles + 1],
-    ids [E] indices into P, g_offsets [M + 1] and g_entries [E]: each Gaussian's list entries in
-    tile order, cost [n_tiles] float64: summed footprint-box areas, pixels)."""
+    ids [E] indices into P, g_offsets [M + 1] and slot [E]: packed Gaussian k's list entries,
+    in tile order, have the slots g_offsets[k] .. g_offsets[k + 1] - 1 (entry j has slot[j]),
+    cost [n_tiles] float64: summed footprint-box areas, pixels)."""
     tx = (width + tile - 1) // tile
     ty = (height + tile - 1) // tile
     n_tiles = tx * ty
@@ -187,7 +236,7 @@ def bin_gaussians(P, width, height, tile):
         counts[t + 1] += counts[t]
     fill = counts[:-1].copy()
     ids = np.empty(counts[n_tiles], np.int64)
-    g_ent = np.empty(g_off[M], np.int64)
+    slot = np.empty(g_off[M], np.int64)
     for k in range(M):
         x0, x1, y0, y1 = rect[k, 0], rect[k, 1], rect[k, 2], rect[k, 3]
         if x0 >= x1:
@@ -197,10 +246,10 @@ def bin_gaussians(P, width, height, tile):
             for xx in range(x0 // tile, (x1 - 1) // tile + 1):
                 t = yy * tx + xx
                 ids[fill[t]] = k
-                g_ent[i] = fill[t]
+                slot[fill[t]] = i
                 i += 1
                 fill[t] += 1
-    return counts, ids, g_off, g_ent, cost
+    return counts, ids, g_off, slot, cost
 
 
 @njit(cache=True)
@@ -235,19 +284,31 @@ def assign_tiles(cost, n_workers):
 @njit(parallel=True, cache=True)
 @no_type_check
 def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
-                      out_rgb, out_depth, out_alpha, T_final, last, work):
+                      out_rgb, out_depth, out_alpha, T_final, last, work, v_off, vspan, rec_g, rec_q, rec_ok):
     """Fill out_rgb [H, W, 3], out_depth [H, W] (sum of w z), out_alpha [H, W], T_final [H, W]
     (float64 final transmittance), last [H, W] (index into ``ids`` of the last contributor, -1
     if none) and work [n_tiles] (pixel visits, the backward pass's cost estimate).
 
     Gaussian-outer order within a tile: each Gaussian (front to back) visits only the tile's
-    pixels inside its footprint ellipse; per-pixel state lives in small tile-local arrays."""
+    pixels inside its footprint ellipse; per-pixel state lives in small tile-local arrays.
+
+    Contribution record for the backward pass (off when ``rec_g`` is empty): every visit that
+    contributes (passes the tests and updates the pixel) appends exp(p) to rec_g (float64) and
+    the pixel's place in the tile, iy 2^16 + ix, to rec_q (int32), in visiting order. Tile t
+    writes [v_off[t], v_off[t + 1]) (v_off [n_tiles + 1]: the cumulated footprint-box areas of
+    ``bin_gaussians``, a bound of its visits), entry j its [vspan[j, 0], vspan[j, 1]) (vspan
+    [E, 2], set for the entries visited). rec_ok[t] ([n_tiles] bool) is False where a tile's
+    visits did not fit (not expected: the ellipse chords lie in the boxes); its backward then
+    recomputes."""
     tx = (width + tile - 1) // tile
+    record = rec_g.shape[0] > 0
     for w in prange(w_off.shape[0] - 1):
         T = np.empty((tile, tile))
         acc = np.empty((tile, tile, 4))
         lst = np.empty((tile, tile), np.int64)
         done = np.empty((tile, tile), np.bool_)
+        rxa = np.empty(tile, np.int64)  # the current Gaussian's pixel span [rxa, rxb) in each tile row
+        rxb = np.empty(tile, np.int64)
         for it in range(w_off[w], w_off[w + 1]):
             t = w_tiles[it]
             t0, t1 = offsets[t], offsets[t + 1]
@@ -261,10 +322,16 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
             done[:] = False
             n_done = 0
             visits = 0
+            rec_t = record
+            v = v_off[t] if record else 0
+            v_end = v_off[t + 1] if record else 0
             for j in range(t0, t1):
                 if n_done == th * tw:
                     break
                 k = ids[j]
+                if rec_t:
+                    vspan[j, 0] = v
+                    vspan[j, 1] = v
                 mx, my = P[k, P_MX], P[k, P_MY]
                 ya, yb = _pix_range(my, P[k, P_RY], py0, th)
                 if ya >= yb:
@@ -272,12 +339,17 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
                 ca, cb, cc, op = P[k, P_A], P[k, P_B], P[k, P_C], P[k, P_OP]
                 c0, c1, c2, z = P[k, P_R], P[k, P_G], P[k, P_BL], P[k, P_Z]
                 p_min = P[k, P_PMIN]
+                n_vis = 0
+                for py in range(ya, yb):  # every row's span first: independent, so they pipeline
+                    rxa[py - py0], rxb[py - py0] = _row_range(P, k, my - (py + 0.5), px0, tw)
+                    n_vis += rxb[py - py0] - rxa[py - py0]
+                visits += n_vis
+                if rec_t and v + n_vis > v_end:
+                    rec_t = False
                 for py in range(ya, yb):
                     dy = my - (py + 0.5)
-                    xa, xb = _row_range(P, k, dy, px0, tw)
                     iy = py - py0
-                    visits += xb - xa
-                    for px in range(xa, xb):
+                    for px in range(rxa[iy], rxb[iy]):
                         ix = px - px0
                         if done[iy, ix]:
                             continue
@@ -285,7 +357,8 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
                         p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
                         if p > 0.0 or p < p_min:
                             continue
-                        a = min(ALPHA_MAX, op * np.exp(p))
+                        G = np.exp(p)
+                        a = min(ALPHA_MAX, op * G)
                         if a < ALPHA_MIN:
                             continue
                         Tp = T[iy, ix]
@@ -301,7 +374,15 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
                         acc[iy, ix, 3] += wt * z
                         T[iy, ix] = nT
                         lst[iy, ix] = j
+                        if rec_t:
+                            rec_g[v] = G
+                            rec_q[v] = (iy << 16) | ix
+                            v += 1
+                if rec_t:
+                    vspan[j, 1] = v
             work[t] = visits
+            if record:
+                rec_ok[t] = rec_t
             for iy in range(th):
                 for ix in range(tw):
                     out_rgb[py0 + iy, px0 + ix, 0] = acc[iy, ix, 0]
@@ -315,17 +396,27 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
 
 @njit(parallel=True, cache=True)
 @no_type_check
-def composite_backward(P, offsets, ids, w_off, w_tiles, width, height, tile, T_final, last, g_rgb, g_depth, g_alpha,
-                       gbuf):
-    """Per list entry j gradients into ``gbuf`` [E, N_GRAD] (float64; rows of entries behind a
-    tile's last contributor are zero). Walks each tile's list back to front from its last
-    contributor (3DGS's backward), each Gaussian over its footprint, accumulating its gradient
-    locally before one write."""
+def composite_backward(P, offsets, ids, slot, w_off, w_tiles, width, height, tile, T_final, last, g_rgb, g_depth,
+                       g_alpha, gbuf, vspan, rec_g, rec_q, rec_ok):
+    """Per list entry j gradients into ``gbuf`` [E, N_GRAD] row slot[j] (float64; so that each
+    Gaussian's rows are adjacent, ``bin_gaussians``; rows of entries behind a tile's last
+    contributor are zero). Walks each tile's list back to front from its last
+    contributor (3DGS's backward), each Gaussian over the pixels it contributed to (in the
+    forward pass's order), accumulating its gradient locally before one write. Those pixels and
+    their exp(p) come from the forward pass's record (``vspan``, ``rec_g``, ``rec_q``, ``rec_ok``
+    of :func:`composite_forward`); without one (``rec_g`` empty, or a tile whose record did not
+    fit) they are found again by the same tests: the same numbers either way, so the same
+    gradients to the bit."""
     tx = (width + tile - 1) // tile
+    use_all = rec_g.shape[0] > 0
     for w in prange(w_off.shape[0] - 1):
         Tt = np.empty((tile, tile))  # transmittance behind the current Gaussian
         U = np.empty((tile, tile))  # sum over the Gaussians behind it of w (dL/dout . (r, g, b, z))
         Gp = np.empty((tile, tile, 5))  # the pixel's dL/d(r, g, b, depth) and dL/dalpha T_final
+        rxa = np.empty(tile, np.int64)  # (recomputing) the current Gaussian's pixel span in each tile row
+        rxb = np.empty(tile, np.int64)
+        own_g = np.empty(tile * tile)  # (recomputing) its contributions: exp(p) and pixel index
+        own_q = np.empty(tile * tile, np.int32)
         for it in range(w_off[w], w_off[w + 1]):
             t = w_tiles[it]
             t0, t1 = offsets[t], offsets[t + 1]
@@ -333,6 +424,7 @@ def composite_backward(P, offsets, ids, w_off, w_tiles, width, height, tile, T_f
             py0 = (t // tx) * tile
             tw = min(tile, width - px0)
             th = min(tile, height - py0)
+            use = use_all and rec_ok[t]
             jmax = -1
             for iy in range(th):
                 for ix in range(tw):
@@ -346,18 +438,37 @@ def composite_backward(P, offsets, ids, w_off, w_tiles, width, height, tile, T_f
                     Gp[iy, ix, 4] = g_alpha[py0 + iy, px0 + ix] * T_final[py0 + iy, px0 + ix]
             for j in range(max(jmax + 1, t0), t1):
                 for q in range(N_GRAD):
-                    gbuf[j, q] = 0.0
+                    gbuf[slot[j], q] = 0.0
             for j in range(jmax, t0 - 1, -1):
                 k = ids[j]
-                for q in range(N_GRAD):
-                    gbuf[j, q] = 0.0
                 mx, my = P[k, P_MX], P[k, P_MY]
-                ya, yb = _pix_range(my, P[k, P_RY], py0, th)
-                if ya >= yb:
-                    continue
                 ca, cb, cc, op = P[k, P_A], P[k, P_B], P[k, P_C], P[k, P_OP]
                 cr, cg, cbl, z = P[k, P_R], P[k, P_G], P[k, P_BL], P[k, P_Z]
-                p_min = P[k, P_PMIN]
+                if use:
+                    src_g, src_q, c_a, c_b = rec_g, rec_q, vspan[j, 0], vspan[j, 1]
+                else:
+                    ya, yb = _pix_range(my, P[k, P_RY], py0, th)
+                    p_min = P[k, P_PMIN]
+                    for py in range(ya, yb):
+                        rxa[py - py0], rxb[py - py0] = _row_range(P, k, my - (py + 0.5), px0, tw)
+                    n = 0
+                    for py in range(ya, yb):
+                        dy = my - (py + 0.5)
+                        iy = py - py0
+                        for px in range(rxa[iy], rxb[iy]):
+                            if j > last[py, px]:
+                                continue
+                            dx = mx - (px + 0.5)
+                            p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
+                            if p > 0.0 or p < p_min:
+                                continue
+                            G = np.exp(p)
+                            if min(ALPHA_MAX, op * G) < ALPHA_MIN:
+                                continue
+                            own_g[n] = G
+                            own_q[n] = (iy << 16) | (px - px0)
+                            n += 1
+                    src_g, src_q, c_a, c_b = own_g, own_q, 0, n
                 a_mx = 0.0
                 a_my = 0.0
                 a_a = 0.0
@@ -370,69 +481,63 @@ def composite_backward(P, offsets, ids, w_off, w_tiles, width, height, tile, T_f
                 a_z = 0.0
                 a_ax = 0.0
                 a_ay = 0.0
-                for py in range(ya, yb):
-                    dy = my - (py + 0.5)
-                    xa, xb = _row_range(P, k, dy, px0, tw)
-                    iy = py - py0
-                    for px in range(xa, xb):
-                        if j > last[py, px]:
-                            continue
-                        ix = px - px0
-                        dx = mx - (px + 0.5)
-                        p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                        if p > 0.0 or p < p_min:
-                            continue
-                        G = np.exp(p)
-                        a0 = op * G
-                        a = min(ALPHA_MAX, a0)
-                        if a < ALPHA_MIN:
-                            continue
-                        inv = 1.0 / (1.0 - a)
-                        Tj = Tt[iy, ix] * inv
-                        wt = a * Tj
-                        gr, ggr, gbl, gd = Gp[iy, ix, 0], Gp[iy, ix, 1], Gp[iy, ix, 2], Gp[iy, ix, 3]
-                        a_r += gr * wt
-                        a_g += ggr * wt
-                        a_bl += gbl * wt
-                        a_z += gd * wt
-                        gc = gr * cr + ggr * cg + gbl * cbl + gd * z
-                        # d out / d alpha_j = T_j c_j - (sum behind of w c) / (1 - alpha_j), dotted with dL/dout
-                        dl_da = gc * Tj + (Gp[iy, ix, 4] - U[iy, ix]) * inv
-                        U[iy, ix] += gc * wt
-                        Tt[iy, ix] = Tj
-                        if a0 >= ALPHA_MAX:
-                            continue  # clamped: no gradient to opacity or shape
-                        a_op += dl_da * G
-                        dl_dp = dl_da * a
-                        gmx = -dl_dp * (ca * dx + cb * dy)
-                        gmy = -dl_dp * (cc * dy + cb * dx)
-                        a_mx += gmx
-                        a_my += gmy
-                        a_ax += abs(gmx)
-                        a_ay += abs(gmy)
-                        a_a += -0.5 * dl_dp * dx * dx
-                        a_b += -dl_dp * dx * dy
-                        a_c += -0.5 * dl_dp * dy * dy
-                gbuf[j, G_MX] = a_mx
-                gbuf[j, G_MY] = a_my
-                gbuf[j, G_A] = a_a
-                gbuf[j, G_B] = a_b
-                gbuf[j, G_C] = a_c
-                gbuf[j, G_OP] = a_op
-                gbuf[j, G_R] = a_r
-                gbuf[j, G_G] = a_g
-                gbuf[j, G_BL] = a_bl
-                gbuf[j, G_Z] = a_z
-                gbuf[j, G_AX] = a_ax
-                gbuf[j, G_AY] = a_ay
+                for c in range(c_a, c_b):
+                    q = src_q[c]
+                    iy = q >> 16
+                    ix = q & 0xFFFF
+                    G = src_g[c]
+                    dx = mx - (px0 + ix + 0.5)
+                    dy = my - (py0 + iy + 0.5)
+                    a0 = op * G
+                    a = min(ALPHA_MAX, a0)
+                    inv = 1.0 / (1.0 - a)
+                    Tj = Tt[iy, ix] * inv
+                    wt = a * Tj
+                    gr, ggr, gbl, gd = Gp[iy, ix, 0], Gp[iy, ix, 1], Gp[iy, ix, 2], Gp[iy, ix, 3]
+                    a_r += gr * wt
+                    a_g += ggr * wt
+                    a_bl += gbl * wt
+                    a_z += gd * wt
+                    gc = gr * cr + ggr * cg + gbl * cbl + gd * z
+                    # d out / d alpha_j = T_j c_j - (sum behind of w c) / (1 - alpha_j), dotted with dL/dout
+                    dl_da = gc * Tj + (Gp[iy, ix, 4] - U[iy, ix]) * inv
+                    U[iy, ix] += gc * wt
+                    Tt[iy, ix] = Tj
+                    if a0 >= ALPHA_MAX:
+                        continue  # clamped: no gradient to opacity or shape
+                    a_op += dl_da * G
+                    dl_dp = dl_da * a
+                    gmx = -dl_dp * (ca * dx + cb * dy)
+                    gmy = -dl_dp * (cc * dy + cb * dx)
+                    a_mx += gmx
+                    a_my += gmy
+                    a_ax += abs(gmx)
+                    a_ay += abs(gmy)
+                    a_a += -0.5 * dl_dp * dx * dx
+                    a_b += -dl_dp * dx * dy
+                    a_c += -0.5 * dl_dp * dy * dy
+                r = slot[j]
+                gbuf[r, G_MX] = a_mx
+                gbuf[r, G_MY] = a_my
+                gbuf[r, G_A] = a_a
+                gbuf[r, G_B] = a_b
+                gbuf[r, G_C] = a_c
+                gbuf[r, G_OP] = a_op
+                gbuf[r, G_R] = a_r
+                gbuf[r, G_G] = a_g
+                gbuf[r, G_BL] = a_bl
+                gbuf[r, G_Z] = a_z
+                gbuf[r, G_AX] = a_ax
+                gbuf[r, G_AY] = a_ay
 
 
 @njit(parallel=True, cache=True)
 @no_type_check
-def reduce_gradients(order, g_off, g_ent, gbuf, g_means2d, g_conics, g_opac, g_colors, g_depths, absgrad):
-    """Sum each packed Gaussian's entry rows (in tile order) into the per-Gaussian outputs
-    g_means2d [N, 2], g_conics [N, 3], g_opac [N], g_colors [N, 3], g_depths [N] (all zeroed
-    first, so Gaussians not in ``order`` get 0) and add |.| sums to absgrad [N, 2] (if N > 0 rows)."""
+def reduce_gradients(order, g_off, gbuf, g_means2d, g_conics, g_opac, g_colors, g_depths, absgrad):
+    """Sum each packed Gaussian's gradient rows (adjacent in ``gbuf``, in tile order:
+    ``bin_gaussians``) into the per-Gaussian outputs g_means2d [N, 2], g_conics [N, 3], g_opac
+    [N], g_colors [N, 3], g_depths [N] (all zeroed first, so Gaussians not in ``order`` get 0)
+    and add |.| sums to absgrad [N, 2] (if N > 0 rows)."""
     N = g_means2d.shape[0]
     for g in prange(N):
         g_means2d[g, 0] = 0.0
@@ -447,22 +552,42 @@ def reduce_gradients(order, g_off, g_ent, gbuf, g_means2d, g_conics, g_opac, g_c
         g_depths[g] = 0.0
     has_abs = absgrad.shape[0] == N
     for k in prange(order.shape[0]):
-        s = np.zeros(N_GRAD)
+        s_mx = 0.0
+        s_my = 0.0
+        s_a = 0.0
+        s_b = 0.0
+        s_c = 0.0
+        s_op = 0.0
+        s_r = 0.0
+        s_g = 0.0
+        s_bl = 0.0
+        s_z = 0.0
+        s_ax = 0.0
+        s_ay = 0.0
         for i in range(g_off[k], g_off[k + 1]):
-            e = g_ent[i]
-            for q in range(N_GRAD):
-                s[q] += gbuf[e, q]
+            s_mx += gbuf[i, G_MX]
+            s_my += gbuf[i, G_MY]
+            s_a += gbuf[i, G_A]
+            s_b += gbuf[i, G_B]
+            s_c += gbuf[i, G_C]
+            s_op += gbuf[i, G_OP]
+            s_r += gbuf[i, G_R]
+            s_g += gbuf[i, G_G]
+            s_bl += gbuf[i, G_BL]
+            s_z += gbuf[i, G_Z]
+            s_ax += gbuf[i, G_AX]
+            s_ay += gbuf[i, G_AY]
         g = order[k]
-        g_means2d[g, 0] = s[G_MX]
-        g_means2d[g, 1] = s[G_MY]
-        g_conics[g, 0] = s[G_A]
-        g_conics[g, 1] = s[G_B]
-        g_conics[g, 2] = s[G_C]
-        g_opac[g] = s[G_OP]
-        g_colors[g, 0] = s[G_R]
-        g_colors[g, 1] = s[G_G]
-        g_colors[g, 2] = s[G_BL]
-        g_depths[g] = s[G_Z]
+        g_means2d[g, 0] = s_mx
+        g_means2d[g, 1] = s_my
+        g_conics[g, 0] = s_a
+        g_conics[g, 1] = s_b
+        g_conics[g, 2] = s_c
+        g_opac[g] = s_op
+        g_colors[g, 0] = s_r
+        g_colors[g, 1] = s_g
+        g_colors[g, 2] = s_bl
+        g_depths[g] = s_z
         if has_abs:
-            absgrad[g, 0] += s[G_AX]
-            absgrad[g, 1] += s[G_AY]
+            absgrad[g, 0] += s_ax
+            absgrad[g, 1] += s_ay

@@ -215,21 +215,23 @@ class _AnchoredFn(torch.autograd.Function):
                                frames.q_face)]
         fc = npy(face)
         outs = [torch.empty(s, dtype=dt) for s in ((n, 3), (n, 4), (n, 3), (n,), (n, 2), (n,), (n,))]
+        aux = np.empty((n if any(ctx.needs_input_grad[:5]) else 0, AK.N_AUX))  # kept for the backward pass
         AK.anchored_forward(*raw, fc, *fr, float(bounds.elevate_coef), float(bounds.upper_scale),
-                            float(bounds.flat_coef), float(bounds.cone), clip, *(o.numpy() for o in outs))
-        ctx.state = (raw[2], raw[3], raw[4], fc, fr[1], fr[2], fr[3], fr[6], float(bounds.cone), clip, dt, n)
+                            float(bounds.flat_coef), float(bounds.cone), clip, *(o.numpy() for o in outs), aux)
+        ctx.state = (aux, fc, fr[1], fr[2], fr[3], fr[6], dt, n)
         return tuple(outs)
 
     @staticmethod
     def backward(ctx, g_means, g_quats, g_scales, g_opac, g_pos2d, g_elev, g_tilt):
         from drawer_lib.splat import _anchored_kernels as AK
 
-        ls, ang, ol, fc, xh, yh, nm, qf, cone, clip, dt, n = ctx.state
+        aux, fc, xh, yh, nm, qf, dt, n = ctx.state
+        npdt = xh.dtype
         shapes = ((n, 3), (n, 4), (n, 3), (n,), (n, 2), (n,), (n,))
-        gs = [np.zeros(s, ls.dtype) if g is None else g.detach().to(dt).contiguous().numpy()
+        gs = [np.zeros(s, npdt) if g is None else g.detach().to(dt).contiguous().numpy()
               for g, s in zip((g_means, g_quats, g_scales, g_opac, g_pos2d, g_elev, g_tilt), shapes)]
-        res = [np.empty(s, ls.dtype) for s in ((n, 2), (n,), (n, 3), (n, 3), (n,))]
-        AK.anchored_backward(ls, ang, ol, fc, xh, yh, nm, qf, cone, clip, *gs, *res)
+        res = [np.empty(s, npdt) for s in ((n, 2), (n,), (n, 3), (n, 3), (n,))]
+        AK.anchored_backward(aux, fc, xh, yh, nm, qf, *gs, *res)
         return (*(torch.from_numpy(r) for r in res), None, None, None, None)
 
 
@@ -244,7 +246,7 @@ def anchored_gaussians(p: AnchoredParams, frames: FaceFrames, bounds: AnchorBoun
         if all(t.dtype == frames.A.dtype for t in ts):
             means, q, s, opac, pos2d, e, phi_c = _AnchoredFn.apply(*ts, p.face, frames, bounds, mode == "ste")
             sh = torch.cat([p.sh_dc, p.sh_rest], 1)
-            return Anchored(Gaussians(means, q, s, opac, sh), pos2d, e, s, phi_c)
+            return Anchored(Gaussians(means, q, s, opac, sh, sh_parts=(p.sh_dc, p.sh_rest)), pos2d, e, s, phi_c)
     f = p.face
     tri, R = frames.tri2d[f], frames.radius[f]
     pos2d = clip_through(p.means_2d, barycentric_clip(p.means_2d, tri), mode)

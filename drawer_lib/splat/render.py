@@ -3,7 +3,7 @@ shape), with a CPU backend (PyTorch projection + numba compositor) and an option
 backend for CUDA users (``backend="gsplat"``: the Gaussians are rasterized on the device and
 the outputs come back to the Gaussians' device, differentiably)."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 from jaxtyping import Float
@@ -21,13 +21,17 @@ BACKENDS = ("cpu", "gsplat")
 @dataclass
 class Gaussians:
     """Activated Gaussian parameters: means [N, 3] (m), quats [N, 4] wxyz (any norm), scales
-    [N, 3] standard deviations (m), opacities [N] in [0, 1], sh [N, K, 3] colour coefficients."""
+    [N, 3] standard deviations (m), opacities [N] in [0, 1], sh [N, K, 3] colour coefficients.
+    ``sh_parts`` (optional): the tensors (dc [N, 1, 3], rest [N, K - 1, 3]) that ``sh`` is the
+    concatenation of; the CPU backend's fused SH then reads them and sends their gradients to
+    them directly (without forming the [N, K, 3] gradient of ``sh``)."""
 
     means: Tensor
     quats: Tensor
     scales: Tensor
     opacities: Tensor
     sh: Tensor
+    sh_parts: tuple[Tensor, Tensor] | None = field(default=None, repr=False)
 
     def __post_init__(self):
         n = self.means.shape[0]
@@ -74,7 +78,8 @@ def render(g: Gaussians, cam: Camera, sh_degree: int, background: Float[Tensor, 
     dirs = g.means - (-viewmat[:3, :3].T @ viewmat[:3, 3])  # camera centre -> Gaussian
     if fused:
         p = project_gaussians_fused(g.means, g.quats, g.scales, viewmat, intr, near, far, eps2d)
-        colors = sh_to_color_fused(g.sh, dirs, sh_degree)
+        colors = sh_to_color_fused(g.sh, dirs, sh_degree) if g.sh_parts is None else \
+            sh_to_color_fused(g.sh_parts[0], dirs, sh_degree, rest=g.sh_parts[1])
     else:
         covars = quat_scale_to_covar(g.quats, g.scales)
         p = project_gaussians(g.means, covars, viewmat, intr, near, far, eps2d)

@@ -39,30 +39,44 @@ def sh_to_color(coeffs: Float[Tensor, "N K 3"], dirs: Float[Tensor, "N 3"], degr
 
 
 class _ShFn(torch.autograd.Function):
+    """The fused SH colour of coefficients [N, K, 3] (``rest`` None) or given as dc [N, 1, 3] and
+    rest [N, K - 1, 3]: then each gets its own contiguous gradient, so that the [N, K, 3]
+    gradient of their concatenation is never formed."""
+
     @staticmethod
-    def forward(ctx, coeffs, dirs, degree):
+    def forward(ctx, coeffs, rest, dirs, degree):
         from drawer_lib.splat import _project_kernels as PK
 
         c, d = coeffs.detach().contiguous().numpy(), dirs.detach().contiguous().numpy()
+        c0, cr = (c[:, :1], c[:, 1:]) if rest is None else (c, rest.detach().contiguous().numpy())
         out = np.empty((c.shape[0], 3), c.dtype)
-        PK.sh_forward(c, d, degree, out)
-        ctx.state = (c, d, degree)
+        PK.sh_forward(c0, cr, d, degree, out)
+        ctx.state = (c, c0, cr, d, degree, rest is None)
         return torch.from_numpy(out)
 
     @staticmethod
     def backward(ctx, g):
         from drawer_lib.splat import _project_kernels as PK
 
-        c, d, degree = ctx.state
-        gc, gd = np.empty_like(c), np.empty_like(d)
-        PK.sh_backward(c, d, degree, g.detach().to(torch.from_numpy(c).dtype).contiguous().numpy(), gc, gd)
-        return torch.from_numpy(gc), torch.from_numpy(gd), None
+        c, c0, cr, d, degree, joined = ctx.state
+        gd = np.empty_like(d)
+        gc = np.empty_like(c)
+        g0, gr = (gc[:, :1], gc[:, 1:]) if joined else (gc, np.empty_like(cr))
+        PK.sh_backward(c0, cr, d, degree, g.detach().to(torch.from_numpy(c).dtype).contiguous().numpy(), g0, gr, gd)
+        return torch.from_numpy(gc), None if joined else torch.from_numpy(gr), torch.from_numpy(gd), None
 
 
-def sh_to_color_fused(coeffs: Float[Tensor, "N K 3"], dirs: Float[Tensor, "N 3"], degree: int) -> Float[Tensor, "N 3"]:
-    """:func:`sh_to_color` in one numba kernel (forward and backward, gradients to both inputs)."""
-    if not 0 <= degree <= 3 or coeffs.shape[1] < num_sh_bases(degree):
-        raise ValueError(f"sh_to_color: degree {degree} needs {num_sh_bases(degree)} coefficients, got {coeffs.shape[1]}")
-    if coeffs.dtype != dirs.dtype:
+def sh_to_color_fused(coeffs: Float[Tensor, "N K 3"], dirs: Float[Tensor, "N 3"], degree: int,
+                      rest: Float[Tensor, "N R 3"] | None = None) -> Float[Tensor, "N 3"]:
+    """:func:`sh_to_color` in one numba kernel (forward and backward, gradients to both inputs).
+    With ``rest``, ``coeffs`` holds only the DC coefficients [N, 1, 3] and ``rest`` the others
+    [N, K - 1, 3] (the colours of their concatenation; the gradients go to each directly)."""
+    n_coef = coeffs.shape[1] if rest is None else 1 + rest.shape[1]
+    if rest is not None and (coeffs.shape[1] != 1 or rest.shape[0] != coeffs.shape[0] or rest.shape[2] != 3):
+        raise ValueError(f"sh_to_color_fused: dc {tuple(coeffs.shape)} and rest {tuple(rest.shape)} must be [N, 1, 3] "
+                         "and [N, K - 1, 3]")
+    if not 0 <= degree <= 3 or n_coef < num_sh_bases(degree):
+        raise ValueError(f"sh_to_color: degree {degree} needs {num_sh_bases(degree)} coefficients, got {n_coef}")
+    if coeffs.dtype != dirs.dtype or (rest is not None and rest.dtype != dirs.dtype):
         raise TypeError("sh_to_color_fused: coeffs and dirs must share a dtype")
-    return _ShFn.apply(coeffs, dirs, degree)
+    return _ShFn.apply(coeffs, rest, dirs, degree)

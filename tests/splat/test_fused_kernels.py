@@ -1,12 +1,15 @@
 """The speed-oriented kernels against their slow references: the compositor's ellipse footprints on
-thin, rotated Gaussians, its independence of the thread count, and the fused D-SSIM."""
+thin, rotated Gaussians, its independence of the thread count, its backward from the forward
+pass's contribution record, its depth sort, and the fused D-SSIM."""
 
 import numba
+import numpy as np
 import pytest
 import torch
 from reference import composite_reference
 
 from drawer_lib.metrics.image import ssim, ssim_target_stats
+from drawer_lib.splat._raster_kernels import depth_order
 from drawer_lib.splat.losses import fused_ssim
 from drawer_lib.splat.rasterize import composite
 
@@ -65,6 +68,47 @@ def test_compositor_is_bit_identical_for_any_thread_count():
         numba.set_num_threads(n0)
     for x, y in zip(res[0], res[-1]):
         assert torch.equal(x, y)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_backward_from_the_visit_record_equals_the_recomputing_backward_to_the_bit(dtype):
+    """The first backward reads the forward pass's recorded exp(p) per pixel visit; a second one
+    (retain_graph: the record has gone back to the pool) recomputes them: the same bits. A
+    render under no_grad records nothing and gives the same image."""
+    xs, radii = thin_scene(300, dtype, seed=3)
+    a = [x.clone().requires_grad_(True) for x in xs]
+    out = composite(*a, radii, W, H, tile=8)
+    g = torch.Generator().manual_seed(4)
+    v = [torch.randn(t.shape, generator=g, dtype=dtype) for t in (out.rgb, out.depth, out.alpha)]
+    loss = sum((o * w).sum() for o, w in zip((out.rgb, out.depth, out.alpha), v))
+    g_rec = torch.autograd.grad(loss, a, retain_graph=True)
+    g_again = torch.autograd.grad(loss, a)
+    for x, y in zip(g_rec, g_again):
+        assert torch.equal(x, y)
+    with torch.no_grad():
+        out2 = composite(*a, radii, W, H, tile=8)
+    for x, y in zip((out.rgb, out.depth, out.alpha), (out2.rgb, out2.depth, out2.alpha)):
+        assert torch.equal(x, y)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_depth_order_is_numpys_stable_argsort(dtype):
+    """The compositor's radix sort against ``np.argsort(kind="stable")``: ties, signed zeros,
+    infinities, NaNs of either sign, wide and narrow ranges, empty and single inputs."""
+    rng = np.random.default_rng(0)
+    for n, make in ((0, None), (1, None), (5000, "narrow"), (5000, "wide"), (3000, "special")):
+        if make == "narrow":
+            d = (rng.random(n) * 3 + 1).astype(dtype)
+        elif make == "wide":
+            d = (rng.standard_normal(n) * 1e30).astype(dtype)
+            d[:50] = 0.0
+        elif make == "special":
+            d = rng.integers(-3, 4, n).astype(dtype)
+            d[::7], d[::11], d[::13], d[5], d[6] = -0.0, np.nan, -np.nan, np.inf, -np.inf
+        else:
+            d = rng.random(n).astype(dtype)
+        vis = np.flatnonzero(rng.random(n) > 0.2)
+        assert np.array_equal(depth_order(vis, d), vis[np.argsort(d[vis], kind="stable")]), (n, make)
 
 
 @pytest.mark.parametrize("dtype,tol", [(torch.float64, 1e-10), (torch.float32, 1e-5)])

@@ -61,7 +61,8 @@ def test_refuses_clearly_without_cuda():
 def test_adapter_plumbing_against_the_interface(monkeypatch):
     monkeypatch.setitem(sys.modules, "gsplat", fake_gsplat())
     bg = torch.tensor([0.1, 0.2, 0.3])
-    leaves = [t.clone().requires_grad_(True) for t in vars(scene()).values()]
+    sc = scene()
+    leaves = [getattr(sc, k).clone().requires_grad_(True) for k in ("means", "quats", "scales", "opacities", "sh")]
     ref_leaves = [t.detach().clone().requires_grad_(True) for t in leaves]
     out = render(Gaussians(*leaves), CAM, 1, bg, backend="gsplat", device="cpu")
     ref = render(Gaussians(*ref_leaves), CAM, 1, bg)

@@ -86,3 +86,23 @@ def test_fused_sh_gradcheck():
     coeffs = (torch.randn(5, 16, 3, generator=g, dtype=torch.float64) * 0.1).requires_grad_(True)
     dirs = torch.randn(5, 3, generator=g, dtype=torch.float64).requires_grad_(True)
     assert torch.autograd.gradcheck(lambda c, d: sh_to_color_fused(c, d, 3), (coeffs, dirs), eps=1e-7, atol=1e-6)
+
+
+@pytest.mark.parametrize("degree", [0, 2, 3])
+def test_fused_sh_of_two_parts_equals_their_concatenation(degree):
+    """dc [N, 1, 3] and rest [N, K - 1, 3] given apart (mesh-anchored training's two parameter
+    groups): the same colours and gradients to the bit as of torch.cat([dc, rest], 1)."""
+    g = torch.Generator().manual_seed(degree)
+    dc = torch.randn(200, 1, 3, generator=g)
+    rest = torch.randn(200, 15, 3, generator=g) * 0.5
+    dirs = torch.randn(200, 3, generator=g)
+    a = [t.clone().requires_grad_(True) for t in (dc, rest, dirs)]
+    b = [t.clone().requires_grad_(True) for t in (dc, rest, dirs)]
+    ca = sh_to_color_fused(a[0], a[2], degree, rest=a[1])
+    cb = sh_to_color_fused(torch.cat([b[0], b[1]], 1), b[2], degree)
+    assert torch.equal(ca, cb)
+    v = torch.randn(ca.shape, generator=g)
+    (ca * v).sum().backward()
+    (cb * v).sum().backward()
+    for x, y in zip(a, b):
+        assert x.grad.is_contiguous() and torch.equal(x.grad, y.grad)
