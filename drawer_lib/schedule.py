@@ -176,11 +176,12 @@ class Outcome:
 
 def run_plan(plan: Plan, launch: Callable[[str], subprocess.Popen], jobs: int,
              report: Callable[[str], None] = print, poll_s: float = 0.2,
-             heartbeat: Callable[[list[str]], None] | None = None, heartbeat_s: float = 30.0) -> list[Outcome]:
+             heartbeat: Callable[[list[str]], None] | None = None, heartbeat_s: float = 30.0,
+             grace_s: float = 20.0) -> list[Outcome]:
     """Run ``plan`` with at most ``jobs`` stages at once; ``launch(stage)`` starts one and
     returns its process. After a failure nothing new starts and the running stages finish.
     On KeyboardInterrupt the running stages get SIGINT (DVC then removes their partial
-    outputs) and are waited for. ``heartbeat(running stages)`` is called every
+    outputs), SIGTERM after ``grace_s`` seconds and SIGKILL after twice that, and are waited for. ``heartbeat(running stages)`` is called every
     ``heartbeat_s`` seconds. Returns one outcome per planned stage, in plan order."""
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -222,27 +223,39 @@ def run_plan(plan: Plan, launch: Callable[[str], subprocess.Popen], jobs: int,
                            + ("; no new stage starts, waiting for the running ones" if running else ""))
     except KeyboardInterrupt:
         report(f"interrupted: stopping {', '.join(running) or 'nothing'}")
-        for proc, _ in running.values():
-            _interrupt(proc)
+        procs = [proc for proc, _ in running.values()]
+        # SIGINT first (a stage cleans up as on Ctrl-C); SIGTERM after grace_s, for processes that
+        # ignore SIGINT (started in the background: a shell's `&` ignores it for its children)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            for proc in procs:
+                _signal(proc, sig)
+            deadline = time.perf_counter() + grace_s
+            while any(p.poll() is None for p in procs) and time.perf_counter() < deadline:
+                time.sleep(0.05)
+            if all(p.poll() is not None for p in procs):
+                break
         for s, (proc, t0) in running.items():
             outcomes[s].rc, outcomes[s].wall_s = proc.wait(), time.perf_counter() - t0
         raise
     return [outcomes[s] for s in plan.stages]
 
 
-def _interrupt(proc: subprocess.Popen) -> None:
-    """SIGINT to ``proc``, and to its whole process group when it leads one (a stage launched in
+def _signal(proc: subprocess.Popen, sig: int) -> None:
+    """``sig`` to ``proc``, and to its whole process group when it leads one (a stage launched in
     its own session: DVC ignores SIGINT while its stage command runs, as a terminal's Ctrl-C
     reaches the command directly)."""
     if proc.poll() is not None:
         return
     try:
         if os.getpgid(proc.pid) == proc.pid:
-            os.killpg(proc.pid, signal.SIGINT)
+            os.killpg(proc.pid, sig)
             return
     except OSError:
         pass
-    proc.send_signal(signal.SIGINT)
+    try:
+        proc.send_signal(sig)
+    except OSError:
+        pass
 
 
 def thread_env(threads: int, base: Mapping[str, str] | None = None) -> dict[str, str]:

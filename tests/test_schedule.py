@@ -225,16 +225,23 @@ def test_an_interrupt_stops_the_running_stages_and_propagates(tmp_path):
     plan = make_plan(DIAMOND, changed={"a", "d"})
     procs = []
 
+    # one stage takes SIGINT, the other ignores it (as a process started in the background does)
+    codes = ["import signal, time; signal.signal(signal.SIGINT, signal.default_int_handler); time.sleep(60)",
+             "import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); time.sleep(60)"]
+
     def launch(stage):  # each stage in its own session, as repro() starts them
-        procs.append(subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"], start_new_session=True))
+        procs.append(subprocess.Popen([sys.executable, "-c", codes[len(procs) % 2]], start_new_session=True))
         return procs[-1]
 
     def report(msg):
         if msg.startswith("[2/"):
+            time.sleep(1.0)  # both have started their sleep
             raise KeyboardInterrupt
 
     t0 = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
-        run_plan(plan, launch, jobs=2, report=report, poll_s=0.02)
+        run_plan(plan, launch, jobs=2, report=report, poll_s=0.02, grace_s=2.0)
     assert len(procs) == 2 and all(p.poll() is not None for p in procs)
+    assert procs[0].returncode != -15  # stopped by SIGINT
+    assert procs[1].returncode == -15  # ignored SIGINT, stopped by SIGTERM
     assert time.perf_counter() - t0 < 30
