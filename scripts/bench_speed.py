@@ -121,34 +121,14 @@ def fig_raster(trees: dict, threads: int) -> None:
         print("\n".join(line for line in r.stdout.splitlines() if line.strip()), flush=True)
 
 
-STEP_CODE = """
-import json, time, trimesh
-from hydra import compose, initialize_config_dir
-from drawer_lib.config.typed import to_typed
-from drawer_lib.io.capture import load_capture
-from drawer_lib.splat.config import AppearanceConfig
-from drawer_lib.splat.train import prepare, train_gaussians
-with initialize_config_dir(config_dir='{root}/conf', version_base='1.3'):
-    cfg = compose(config_name='config', overrides=['scene={scene}', 'appearance_variant=movable_gs_ste',
-                  'appearance.steps=300', 'appearance.eval_every=1000000', 'appearance.strategy.refine_start=0'])
-app = to_typed(AppearanceConfig, cfg.appearance, 'appearance')
-cap = load_capture('{root}/out/{scene}/capture')
-sc = prepare(cap, trimesh.load('{root}/out/{scene}/mesh/mesh.ply', process=False), app)
-stamps = []
-def progress(it, **kw):
-    for x in it:
-        stamps.append(time.perf_counter())
-        yield x
-st = train_gaussians(cap, sc, app, 0, progress)
-stamps.append(time.perf_counter())
-last = stamps[-101:]
-print(json.dumps({{'ms': 1000 * (last[-1] - last[0]) / 100, 'n': int(st.params.face.shape[0])}}))
-"""
 
 
 def fig_step(trees: dict, threads: int) -> None:
-    res = {k: py(tree, STEP_CODE.format(root=ROOT, scene=SCENE), threads) for k, tree in trees.items()}
-    row(f"train step, movable_gs_ste ({res['now']['n']} Gaussians)", res["ref"]["ms"], res["now"]["ms"], "ms",
+    from bench_step_ab import step_code  # the same run as the A/B script's (this file's folder is on sys.path)
+
+    res = {k: py(tree, step_code(ROOT, tree / "conf", SCENE, "movable_gs_ste", 300, 100), threads)
+           for k, tree in trees.items()}  # each tree with its own config schema
+    row(f"train step, movable_gs_ste ({res['now']['n']} Gaussians)", res["ref"]["mean"], res["now"]["mean"], "ms",
         "<= 80 ms")
 
 

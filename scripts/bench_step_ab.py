@@ -23,7 +23,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-RUN_CODE = """
+_RUN_CODE = """
 import hashlib, json, statistics, sys, time
 import torch, trimesh
 from hydra import compose, initialize_config_dir
@@ -53,6 +53,13 @@ print(json.dumps({{'mean': statistics.fmean(dt), 'median': statistics.median(dt)
 """
 
 
+def step_code(root: Path, conf: Path, scene: str, variant: str, steps: int, last: int) -> str:
+    """Python source that trains ``variant`` on ``root``'s out/<scene> with the config schema of
+    ``conf`` and prints one JSON line: mean / median ms of the last ``last`` steps, the Gaussian
+    count ``n`` and a SHA-1 of the final parameters (also ``scripts/bench_speed.py``'s step figure)."""
+    return _RUN_CODE.format(root=root, conf=conf, scene=scene, variant=variant, steps=steps, last=last)
+
+
 def run(tree: Path, code: str, threads: int) -> dict:
     t = str(threads)
     env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": t, "MKL_NUM_THREADS": t, "NUMBA_NUM_THREADS": t}
@@ -80,8 +87,8 @@ def main() -> None:
     if not (ROOT / "out" / args.scene / "mesh" / "mesh.ply").is_file():
         raise SystemExit(f"out/{args.scene}/mesh/mesh.ply: missing (dvc repro mesh@{args.scene} first)")
     trees = {"ref": args.ref.resolve(), "now": args.now.resolve()}
-    codes = {k: RUN_CODE.format(root=ROOT, conf=tree / "conf", scene=args.scene, variant=args.variant, steps=args.steps,
-                                last=args.last) for k, tree in trees.items()}  # each tree with its own config schema
+    codes = {k: step_code(ROOT, tree / "conf", args.scene, args.variant, args.steps, args.last)
+             for k, tree in trees.items()}  # each tree with its own config schema
     res: dict[str, list[dict]] = {k: [] for k in trees}
     for i in range(args.rounds):
         for k, tree in trees.items():

@@ -133,6 +133,29 @@ def _row_range(P, k, dy, px0, tw):
     return int(fa), int(max(fb, fa))
 
 
+@njit(cache=True, inline="always")
+@no_type_check
+def _tile_box(t, tx, tile, width, height):
+    """Tile t's pixel origin and size (tx tiles per row; the last row / column may be cut): px0, py0, tw, th."""
+    px0 = (t % tx) * tile
+    py0 = (t // tx) * tile
+    return px0, py0, min(tile, width - px0), min(tile, height - py0)
+
+
+@njit(cache=True, inline="always")
+@no_type_check
+def _row_spans(P, k, px0, py0, tw, th, rxa, rxb):
+    """Packed Gaussian k's rows [ya, yb) in the tile, each row's pixel span [rxa, rxb)[py - py0]
+    (filled first: the rows are independent, so they pipeline) and the pixels they hold in all."""
+    my = P[k, P_MY]
+    ya, yb = _pix_range(my, P[k, P_RY], py0, th)
+    n = 0
+    for py in range(ya, yb):
+        rxa[py - py0], rxb[py - py0] = _row_range(P, k, my - (py + 0.5), px0, tw)
+        n += rxb[py - py0] - rxa[py - py0]
+    return ya, yb, n
+
+
 @njit(cache=True)
 @no_type_check
 def depth_order(vis, depths):
@@ -312,10 +335,7 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
         for it in range(w_off[w], w_off[w + 1]):
             t = w_tiles[it]
             t0, t1 = offsets[t], offsets[t + 1]
-            px0 = (t % tx) * tile
-            py0 = (t // tx) * tile
-            tw = min(tile, width - px0)
-            th = min(tile, height - py0)
+            px0, py0, tw, th = _tile_box(t, tx, tile, width, height)
             T[:] = 1.0
             acc[:] = 0.0
             lst[:] = -1
@@ -333,16 +353,12 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
                     vspan[j, 0] = v
                     vspan[j, 1] = v
                 mx, my = P[k, P_MX], P[k, P_MY]
-                ya, yb = _pix_range(my, P[k, P_RY], py0, th)
+                ya, yb, n_vis = _row_spans(P, k, px0, py0, tw, th, rxa, rxb)
                 if ya >= yb:
                     continue
                 ca, cb, cc, op = P[k, P_A], P[k, P_B], P[k, P_C], P[k, P_OP]
                 c0, c1, c2, z = P[k, P_R], P[k, P_G], P[k, P_BL], P[k, P_Z]
                 p_min = P[k, P_PMIN]
-                n_vis = 0
-                for py in range(ya, yb):  # every row's span first: independent, so they pipeline
-                    rxa[py - py0], rxb[py - py0] = _row_range(P, k, my - (py + 0.5), px0, tw)
-                    n_vis += rxb[py - py0] - rxa[py - py0]
                 visits += n_vis
                 if rec_t and v + n_vis > v_end:
                     rec_t = False
@@ -420,10 +436,7 @@ def composite_backward(P, offsets, ids, slot, w_off, w_tiles, width, height, til
         for it in range(w_off[w], w_off[w + 1]):
             t = w_tiles[it]
             t0, t1 = offsets[t], offsets[t + 1]
-            px0 = (t % tx) * tile
-            py0 = (t // tx) * tile
-            tw = min(tile, width - px0)
-            th = min(tile, height - py0)
+            px0, py0, tw, th = _tile_box(t, tx, tile, width, height)
             use = use_all and rec_ok[t]
             jmax = -1
             for iy in range(th):
@@ -447,10 +460,8 @@ def composite_backward(P, offsets, ids, slot, w_off, w_tiles, width, height, til
                 if use:
                     src_g, src_q, c_a, c_b = rec_g, rec_q, vspan[j, 0], vspan[j, 1]
                 else:
-                    ya, yb = _pix_range(my, P[k, P_RY], py0, th)
+                    ya, yb, _ = _row_spans(P, k, px0, py0, tw, th, rxa, rxb)
                     p_min = P[k, P_PMIN]
-                    for py in range(ya, yb):
-                        rxa[py - py0], rxb[py - py0] = _row_range(P, k, my - (py + 0.5), px0, tw)
                     n = 0
                     for py in range(ya, yb):
                         dy = my - (py + 0.5)
