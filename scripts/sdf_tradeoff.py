@@ -20,6 +20,7 @@ import argparse
 import csv
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -164,10 +165,10 @@ def main() -> None:
         print(f"\nthe mesh stage (tracked metrics)\n{'variant':<24} " + " ".join(f"{k:>18}" for k in keys))
         for n, mm in meshed.items():
             print(f"{n:<24} " + " ".join(f"{mm[k]:>18.5g}" for k in keys))
-        for prefix in ("default_s", "steps_800"):
-            group = [mm for n, mm in meshed.items() if n.startswith(prefix)]
+        for prefix, pattern in (("default", r"default_s\d+"), ("steps_800", r"steps_800(_s\d+)?")):
+            group = [mm for n, mm in meshed.items() if re.fullmatch(pattern, n)]  # seeds only, not other variants
             if len(group) > 1:
-                print(f"{prefix}* ({len(group)} seeds): " + ", ".join(
+                print(f"{prefix} ({len(group)} seeds): " + ", ".join(
                     f"{k} {min(g[k] for g in group):.5g} - {max(g[k] for g in group):.5g} (mean {sum(g[k] for g in group) / len(group):.5g})"
                     for k in keys))
     print(f"\n{args.out / 'sdf_tradeoff.csv'}, {args.out / 'sdf_tradeoff.png'}")
