@@ -59,6 +59,20 @@ def region(points_sets: list[np.ndarray], R: np.ndarray, grow: int) -> np.ndarra
     return binary_dilation(mask, iterations=grow)
 
 
+def settled(render, what: str, timeout: float = 120.0) -> np.ndarray:
+    """The first render equal to the one before it (no pixel moved by more than 40 in RGB sum).
+    The page loads, sorts and fades the splats in asynchronously, and a render for a new camera
+    can use the previous camera's sort, so a fixed sleep is not enough on a loaded machine."""
+    t0, prev = time.monotonic(), render()
+    while True:
+        img = render()
+        if not (np.abs(img - prev).sum(-1) > 40).any():
+            return img
+        if time.monotonic() - t0 > timeout:
+            raise TimeoutError(f"{what} still changed between renders after {timeout} s")
+        prev = img
+
+
 def test_moving_a_slider_in_the_page_changes_the_image_inside_the_part_only(tmp_path):
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     scene = load_twin_scene(write_tiny_twin(tmp_path / "twin"))
@@ -70,10 +84,9 @@ def test_moving_a_slider_in_the_page_changes_the_image_inside_the_part_only(tmp_
         with HeadlessChromium(f"http://127.0.0.1:{server.get_port()}", size=(960, 600)) as page:
             page.wait_until(lambda: len(server.get_clients()) > 0, 60, "the page to connect to the viewer")
             client = next(iter(server.get_clients().values()))
-            time.sleep(4)  # the splats load, sort and fade in
             render = lambda: client.get_render(H, W, wxyz=wxyz, position=EYE, fov=FOV, transport_format="png",  # noqa: E731
                                                timeout=120)[..., :3].astype(np.int16)
-            before = render()
+            before = settled(render, "the closed drawer's render")
             page.screenshot(ARTIFACTS / "page_closed.png")
             # the user's action: focus the drawer's slider (the first) and press End
             assert page.evaluate("document.querySelectorAll('[role=slider]').length") == 3
@@ -82,8 +95,7 @@ def test_moving_a_slider_in_the_page_changes_the_image_inside_the_part_only(tmp_
             page.wait_until(lambda: viewer.sliders["drawer_0"].value == pytest.approx(0.4), 30,
                             "the page's slider to reach the viewer")
             assert viewer.q("drawer_0") == pytest.approx(0.4) and viewer.q("door_0") == 0.0
-            time.sleep(3)
-            after = render()
+            after = settled(render, "the open drawer's render")
             page.screenshot(ARTIFACTS / "page_open.png")
     finally:
         server.stop()
