@@ -9,6 +9,10 @@ CUDA-only packed cumprod, and its `_isect_tiles` is a Python loop per Gaussian. 
 replaces those three with short pure-PyTorch shims (vectorised over the Gaussians of a tile;
 same termination rule) and times projection + SH + compositing, forward and backward.
 
+Ours and the reference run alternately, ``--repeat`` rounds of one call each after two warm-up
+rounds; the speed-up is the median of the rounds' own ratios (with their range), so that the
+machine's load, which drifts over seconds, hits both sides of each ratio alike.
+
     python scripts/bench_splat.py [--repeat 7] [--sizes 128x96 256x192] [--counts 5000 20000]
 """
 
@@ -146,13 +150,17 @@ def gsplat_reference(params, cam: Camera, tile: int = 16):
     return rgb[0], alpha[0, ..., 0]
 
 
-def timeit(fn, repeat):
-    ts = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts[min(2, repeat - 1):]))
+def interleaved(fns: dict, rounds: int, warmup: int = 2) -> dict[str, np.ndarray]:
+    """Seconds per call of each function in ``fns`` (name -> callable), the functions called in
+    turn each round: ``rounds`` timed rounds after ``warmup`` untimed ones."""
+    ts = {k: [] for k in fns}
+    for r in range(warmup + rounds):
+        for k, fn in fns.items():
+            t = time.perf_counter()
+            fn()
+            if r >= warmup:
+                ts[k].append(time.perf_counter() - t)
+    return {k: np.asarray(v) for k, v in ts.items()}
 
 
 def main() -> None:
@@ -169,8 +177,8 @@ def main() -> None:
     except ImportError:
         have_ref = False
         print("gsplat not installed (pip install gsplat==1.5.3): reference column skipped")
-    print(f"{'size':>8} {'N':>6} | {'ours fwd':>9} {'ours f+b':>9} | {'gsplat-torch f+b':>16} | {'speed-up':>8} | "
-          f"{'max |rgb diff|':>14}")
+    print(f"{'size':>8} {'N':>6} | {'ours fwd':>9} {'ours f+b':>9} | {'gsplat-torch f+b':>16} | "
+          f"{'speed-up (range)':>18} | {'max |rgb diff|':>14}")
     for size in a.sizes:
         W, H = map(int, size.split("x"))
         cam = Camera(Intrinsics(0.8 * W, 0.8 * W, W / 2, H / 2, W, H), np.eye(4))
@@ -183,17 +191,19 @@ def main() -> None:
                     (out.rgb.sum() + out.alpha.sum()).backward()
                 return out
 
-            t_f = timeit(lambda: ours(False), a.repeat)
-            t_fb = timeit(ours, a.repeat)
-            row = f"{size:>8} {n:>6} | {1000 * t_f:8.1f}  {1000 * t_fb:8.1f}  |"
+            def ref():
+                rgb, alpha = gsplat_reference(params, cam)
+                (rgb.sum() + alpha.sum()).backward()
+
+            fns = {"fwd": lambda: ours(False), "fb": ours} | ({"ref": ref} if have_ref else {})
+            t = interleaved(fns, a.repeat)
+            row = f"{size:>8} {n:>6} | {1000 * np.median(t['fwd']):8.1f}  {1000 * np.median(t['fb']):8.1f}  |"
             if have_ref:
-                def ref():
-                    rgb, alpha = gsplat_reference(params, cam)
-                    (rgb.sum() + alpha.sum()).backward()
-                t_r = timeit(ref, max(3, a.repeat // 2))
+                ratio = t["ref"] / t["fb"]
                 with torch.no_grad():
                     diff = float((gsplat_reference(params, cam)[0] - ours(False).rgb).abs().max())
-                row += f" {1000 * t_r:15.1f}  | {t_r / t_fb:7.1f}x | {diff:14.2e}"
+                row += (f" {1000 * np.median(t['ref']):15.1f}  | {np.median(ratio):5.1f}x ({ratio.min():.1f}-"
+                        f"{ratio.max():.1f}) | {diff:14.2e}")
             print(row + "   (ms)", flush=True)
 
 

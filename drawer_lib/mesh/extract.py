@@ -37,28 +37,52 @@ def evaluate(sdf_fn: SdfFn, pts: torch.Tensor, chunk: int = 1 << 16) -> torch.Te
     return out.reshape(pts.shape[:-1])
 
 
-@torch.no_grad()
-def sdf_grid(sdf_fn: SdfFn, lo: np.ndarray, hi: np.ndarray, cell: float, coarse_factor: int = 4) -> np.ndarray:
-    """SDF values [X, Y, Z] on the grid of cell ``cell`` from ``lo`` (covering ``hi``); exact within
-    two coarse cells of the zero level set, upsampled coarse values elsewhere."""
-    shape = grid_shape(lo, hi, cell)
-    if coarse_factor <= 1:
-        return evaluate(sdf_fn, grid_points(lo, shape, cell)).numpy()
-    ccell = cell * coarse_factor
-    cshape = grid_shape(lo, hi, ccell)
-    coarse = evaluate(sdf_fn, grid_points(lo, cshape, ccell))
-    # upsample to the fine vertices (aligned at lo: fine vertex k sits at coarse coordinate k / factor)
-    up = F.interpolate(coarse[None, None], size=tuple((np.array(cshape) - 1) * coarse_factor + 1), mode="trilinear",
+def refine_levels(coarse_factor: int) -> list[int]:
+    """Cell multiples of the coarse-to-fine levels of :func:`sdf_grid`: ``coarse_factor`` halved
+    while it stays even, then 1 (4 -> [4, 2, 1], 8 -> [8, 4, 2, 1], 6 -> [6, 3, 1], 5 -> [5, 1])."""
+    f, levels = int(coarse_factor), [int(coarse_factor)]
+    while f > 1:
+        f = f // 2 if f % 2 == 0 else 1
+        levels.append(f)
+    return levels
+
+
+def _upsample(values: torch.Tensor, factor: int, shape: tuple[int, int, int]) -> torch.Tensor:
+    """Trilinear values at the vertices of a grid ``factor`` times finer than ``values``' and
+    aligned at its first vertex (fine vertex k sits at coarse coordinate k / factor), cropped or
+    edge-padded to ``shape``."""
+    up = F.interpolate(values[None, None], size=tuple((np.array(values.shape) - 1) * factor + 1), mode="trilinear",
                        align_corners=True)[0, 0]
     up = up[: shape[0], : shape[1], : shape[2]]
     pad = [max(shape[a] - up.shape[a], 0) for a in range(3)]
     if any(pad):
         up = F.pad(up[None, None], (0, pad[2], 0, pad[1], 0, pad[0]), mode="replicate")[0, 0]
-    near = up.abs() < 2.0 * ccell
-    idx = near.nonzero()  # only these fine vertices are evaluated; no full grid of points is built
-    pts = torch.tensor(lo, dtype=torch.float32) + cell * idx.to(torch.float32)
-    vals = up.clone()
-    vals[near] = evaluate(sdf_fn, pts)
+    return up
+
+
+@torch.no_grad()
+def sdf_grid(sdf_fn: SdfFn, lo: np.ndarray, hi: np.ndarray, cell: float, coarse_factor: int = 4) -> np.ndarray:
+    """SDF values [X, Y, Z] on the grid of cell ``cell`` from ``lo`` (covering ``hi``).
+
+    Coarse to fine: the SDF is evaluated everywhere on a grid of cell ``coarse_factor * cell``,
+    then level by level (cell halved, :func:`refine_levels`) the previous level's values are
+    upsampled trilinearly and evaluated exactly where they lie within two of the previous
+    level's cells of the zero level set. So the result is exact within two cells of the zero
+    level set (and within 2 * 2^k cells where k levels up were exact), and upsampled values of a
+    coarser level elsewhere, which keep the sign of the field away from the surface. The
+    evaluations scale with the surface area, not the volume of the box."""
+    shape = grid_shape(lo, hi, cell)
+    levels = refine_levels(coarse_factor)
+    c0 = cell * levels[0]
+    vals = evaluate(sdf_fn, grid_points(lo, grid_shape(lo, hi, c0), c0))
+    for prev, f in zip(levels, levels[1:]):
+        lshape = shape if f == 1 else grid_shape(lo, hi, cell * f)
+        up = _upsample(vals, prev // f, lshape)
+        near = up.abs() < 2.0 * cell * prev
+        idx = near.nonzero()  # only these vertices are evaluated; no full grid of points is built
+        pts = torch.tensor(lo, dtype=torch.float32) + (cell * f) * idx.to(torch.float32)
+        vals = up
+        vals[near] = evaluate(sdf_fn, pts)
     return vals.numpy()
 
 

@@ -1,4 +1,4 @@
-"""Marching cubes on analytic SDFs, masks, PyMeshLab clean-up, grid fields, and the geometry
+"""Marching cubes on analytic SDFs, masks, clean-up and both decimators, grid fields, and the geometry
 metrics (DESIGN §6) on analytic meshes."""
 
 import math
@@ -8,10 +8,10 @@ import pytest
 import torch
 import trimesh
 
-from drawer_lib.errors import NonFiniteError
+from drawer_lib.errors import ConfigError, NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
-from drawer_lib.mesh.clean import CleanConfig, clean_mesh
-from drawer_lib.mesh.extract import crossing_cubes, cube_mask, frustum_mask, grid_field_mesh, seen_crossing_mask, grid_shape, marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.clean import CleanConfig, clean_mesh, fast_quadric, unit_edge_scale
+from drawer_lib.mesh.extract import crossing_cubes, cube_mask, frustum_mask, grid_field_mesh, seen_crossing_mask, grid_shape, marching_cubes_mesh, refine_levels, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.sdf.io import GridSDF
 
@@ -44,6 +44,35 @@ def test_coarse_to_fine_grid_equals_dense_near_the_surface():
     near = np.abs(dense) < 2 * cell
     np.testing.assert_allclose(c2f[near], dense[near], atol=1e-6)
     assert np.all(np.sign(c2f[~near]) == np.sign(dense[~near]))
+
+
+@pytest.mark.parametrize("coarse", [2, 6, 8])
+def test_every_coarse_to_fine_ladder_is_exact_near_the_surface_and_keeps_the_sign(coarse):
+    lo, hi, cell = np.full(3, -0.8), np.full(3, 0.8), 0.02
+    dense = sdf_grid(sphere_sdf, lo, hi, cell, 1)
+    c2f = sdf_grid(sphere_sdf, lo, hi, cell, coarse)
+    near = np.abs(dense) < 2 * cell
+    np.testing.assert_allclose(c2f[near], dense[near], atol=1e-6)
+    assert np.all(np.sign(c2f[~near]) == np.sign(dense[~near]))
+
+
+def test_refine_levels_halve_while_even():
+    assert refine_levels(1) == [1]
+    assert refine_levels(4) == [4, 2, 1]
+    assert refine_levels(8) == [8, 4, 2, 1]
+    assert refine_levels(6) == [6, 3, 1]
+    assert refine_levels(5) == [5, 1]
+
+
+def test_coarse_to_fine_evaluates_a_fraction_of_the_dense_grid():
+    lo, hi, cell, n = np.full(3, -0.8), np.full(3, 0.8), 0.01, [0]
+
+    def counted(x):
+        n[0] += len(x)
+        return sphere_sdf(x)
+
+    sdf_grid(counted, lo, hi, cell, 4)
+    assert n[0] < 0.15 * np.prod(grid_shape(lo, hi, cell))
 
 
 def test_level_key_offsets_the_surface():
@@ -178,6 +207,49 @@ def test_clean_drops_small_components_and_simplifies():
     out2, _ = clean_mesh(big, CleanConfig(min_component_diag=0.0, target_faces=0, remesh_iters=2, remesh_edge=0.05))
     e = out2.edges_unique_length
     assert 0.02 < np.median(e) < 0.08 and abs(out2.area - big.area) / big.area < 0.03
+
+
+@pytest.mark.parametrize("decimator", ["fast_quadric", "pymeshlab"])
+def test_both_decimators_keep_a_sphere_within_a_millimetre(decimator):
+    m = sphere_mesh(cell=0.01)  # ~94k faces
+    out, counts = clean_mesh(m, CleanConfig(min_component_diag=0.0, target_faces=5000, decimator=decimator))
+    assert 4750 <= counts["faces_out"] <= 5000
+    r = np.linalg.norm(out.vertices, axis=1)
+    assert np.abs(r - R).max() < 1e-3 and np.abs(r - R).mean() < 4e-4  # slow reference: the exact sphere
+    assert (np.einsum("ij,ij->i", out.face_normals, out.triangles_center) > 0).mean() > 0.999
+    assert abs(out.area - m.area) / m.area < 0.01
+
+
+def test_fast_quadric_is_deterministic_and_the_same_in_any_power_of_two_unit():
+    m = sphere_mesh(cell=0.02)
+    v, f = fast_quadric(m.vertices, m.faces, 2000)
+    v2, f2 = fast_quadric(m.vertices, m.faces, 2000)
+    np.testing.assert_array_equal(v, v2)
+    np.testing.assert_array_equal(f, f2)
+    for k in (-20, 20):  # ~1 um and ~1000 km spheres
+        vk, fk = fast_quadric(m.vertices * 2.0**k, m.faces, 2000)
+        np.testing.assert_array_equal(fk, f)
+        np.testing.assert_array_equal(vk / 2.0**k, v)
+    # another unit (centimetres): not bit-identical, as good
+    vc, fc = fast_quadric(m.vertices * 100.0, m.faces, 2000)
+    assert len(fc) == len(f) and np.abs(np.linalg.norm(vc / 100.0, axis=1) - R).max() < 2e-3
+
+
+def test_unit_edge_scale_and_degenerate_meshes():
+    v = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0]], float)
+    assert unit_edge_scale(v, np.array([[0, 1, 2]])) == 128.0  # median edge 1 cm -> x128
+    assert unit_edge_scale(np.zeros((3, 3)), np.array([[0, 1, 2]])) == 1.0  # all zero-length
+    m = sphere_mesh(cell=0.05)
+    faces = np.concatenate([m.faces, m.faces[:50, [0, 0, 1]]])  # zero-area faces among the input
+    out, counts = clean_mesh(trimesh.Trimesh(m.vertices, faces, process=False), CleanConfig(min_component_diag=0.0, target_faces=500))
+    assert counts["faces_out"] <= 500 and np.isfinite(out.vertices).all()
+    assert np.all(out.area_faces > 0)
+    bad = m.vertices.copy()
+    bad[3] = np.nan
+    with pytest.raises(NonFiniteError, match="non-finite"):
+        fast_quadric(bad, m.faces, 100)
+    with pytest.raises(ConfigError, match="decimator"):
+        CleanConfig(decimator="quadric")
 
 
 def test_clean_of_an_empty_mesh_is_empty():
