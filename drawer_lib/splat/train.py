@@ -25,11 +25,14 @@ EVAL_BG = np.array([0.149, 0.1647, 0.2157])  # DRAWER's evaluation background
 
 
 def decimate(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
+    """``mesh`` simplified to at most ``max_faces`` faces (one Gaussian per face) by PyMeshLab's
+    quadric collapse: the appearance variants' results were measured with it, and the mesh
+    stage's faster default has been benchmarked for the mesh stage only (docs/speed.md)."""
     if len(mesh.faces) <= max_faces:
         return mesh
     from drawer_lib.mesh.clean import CleanConfig, clean_mesh
 
-    out, _ = clean_mesh(mesh, CleanConfig(min_component_diag=0.0, target_faces=max_faces))
+    out, _ = clean_mesh(mesh, CleanConfig(min_component_diag=0.0, target_faces=max_faces, decimator="pymeshlab"))
     return out
 
 
