@@ -7,7 +7,9 @@ appearance variants, perception next to appearance, the twin's chain next to the
 can share the cores instead. This module plans that and runs it with DVC itself:
 
 1. one ``dvc status`` (in-process) finds the stages that changed; with everything that depends
-   on them, they are the *plan*;
+   on them, they are the *plan*. DVC parses ``params.yaml`` again for every stage that has
+   parameter dependencies (43 times for the default scene); here each distinct text is parsed
+   once (:func:`yaml_parse_memo`), which takes ~0.4 s off a no-op ``make run``;
 2. every planned stage runs as its own ``dvc --wait-for-lock repro --single-item <stage>``
    process once the planned stages it depends on have finished. DVC releases the repository's
    lock while a stage's command runs and updates ``dvc.lock`` under it, so several of these
@@ -267,6 +269,31 @@ def thread_env(threads: int, base: Mapping[str, str] | None = None) -> dict[str,
     return env
 
 
+@contextlib.contextmanager
+def yaml_parse_memo():
+    """Within the block, DVC's YAML parser (``dvc.utils.serialize._yaml.parse_yaml``) parses each
+    distinct (text, path, type) once and hands out deep copies of that parse, so a caller that
+    edits what it got cannot change what the next one gets. Keyed on the text itself, never on
+    a file's time stamp. The original parser is restored on exit."""
+    import copy
+
+    import dvc.utils.serialize._yaml as dvc_yaml
+
+    original, cache = dvc_yaml.parse_yaml, {}
+
+    def parse_yaml(text, path, typ="safe"):
+        key = (text, str(path), typ)
+        if key not in cache:
+            cache[key] = original(text, path, typ)
+        return copy.deepcopy(cache[key])
+
+    dvc_yaml.parse_yaml = parse_yaml
+    try:
+        yield cache
+    finally:
+        dvc_yaml.parse_yaml = original
+
+
 def dvc_graph(root: Path) -> tuple[dict[str, frozenset[str]], set[str], dict[str, float]]:
     """The pipeline of the DVC project at ``root``: ``deps`` (stage -> the stages it uses),
     the changed stages (one in-process ``dvc status``) and each stage's cost (the sum of the
@@ -276,7 +303,7 @@ def dvc_graph(root: Path) -> tuple[dict[str, frozenset[str]], set[str], dict[str
     from dvc.repo.reproduce import get_active_graph
 
     # stage names (``addressing``) are relative to the working directory, as on the command line
-    with contextlib.chdir(root), Repo(str(root)) as repo:
+    with contextlib.chdir(root), yaml_parse_memo(), Repo(str(root)) as repo:
         graph = get_active_graph(repo.index.graph)
         names = {st: st.addressing for st in graph if getattr(st, "cmd", None)}
         deps = {names[st]: frozenset(names[d] for d in graph.successors(st) if d in names) for st in names}

@@ -9,9 +9,10 @@ CUDA-only packed cumprod, and its `_isect_tiles` is a Python loop per Gaussian. 
 replaces those three with short pure-PyTorch shims (vectorised over the Gaussians of a tile;
 same termination rule) and times projection + SH + compositing, forward and backward.
 
-Ours and the reference run alternately, ``--repeat`` rounds of one call each after two warm-up
-rounds; the speed-up is the median of the rounds' own ratios (with their range), so that the
-machine's load, which drifts over seconds, hits both sides of each ratio alike.
+Ours and the reference run alternately, ``--repeat`` rounds after one warm-up round; in a round
+each is called three times in a row (warm, as in a training loop) and its median call kept. The
+speed-up is the median of the rounds' own ratios (with their range), so that the machine's load,
+which drifts over seconds, hits both sides of each ratio alike.
 
     python scripts/bench_splat.py [--repeat 7] [--sizes 128x96 256x192] [--counts 5000 20000]
 """
@@ -150,16 +151,20 @@ def gsplat_reference(params, cam: Camera, tile: int = 16):
     return rgb[0], alpha[0, ..., 0]
 
 
-def interleaved(fns: dict, rounds: int, warmup: int = 2) -> dict[str, np.ndarray]:
-    """Seconds per call of each function in ``fns`` (name -> callable), the functions called in
-    turn each round: ``rounds`` timed rounds after ``warmup`` untimed ones."""
+def interleaved(fns: dict, rounds: int, block: int = 3, warmup: int = 1) -> dict[str, np.ndarray]:
+    """Seconds per call of each function in ``fns`` (name -> callable), one value per round: each
+    round calls every function ``block`` times in a row (warm caches and buffers, as in a
+    training loop) and keeps the median of the block; ``warmup`` untimed rounds first."""
     ts = {k: [] for k in fns}
     for r in range(warmup + rounds):
         for k, fn in fns.items():
-            t = time.perf_counter()
-            fn()
+            block_ts = []
+            for _ in range(block):
+                t = time.perf_counter()
+                fn()
+                block_ts.append(time.perf_counter() - t)
             if r >= warmup:
-                ts[k].append(time.perf_counter() - t)
+                ts[k].append(float(np.median(block_ts)))
     return {k: np.asarray(v) for k, v in ts.items()}
 
 
@@ -185,14 +190,20 @@ def main() -> None:
         for n in a.counts:
             params = [t.clone().requires_grad_(True) for t in scene(n)]
 
+            def zero_grad():  # as a training step's optimizer.zero_grad(set_to_none=True), for both
+                for t in params:
+                    t.grad = None
+
             def ours(backward=True):
                 out = render(Gaussians(*params), cam, SH_DEGREE)
                 if backward:
+                    zero_grad()
                     (out.rgb.sum() + out.alpha.sum()).backward()
                 return out
 
             def ref():
                 rgb, alpha = gsplat_reference(params, cam)
+                zero_grad()
                 (rgb.sum() + alpha.sum()).backward()
 
             fns = {"fwd": lambda: ours(False), "fb": ours} | ({"ref": ref} if have_ref else {})

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from drawer_lib.config.compose import compose_params, params_diff
+from drawer_lib.config.compose import compose_if_changed, params_diff
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -29,8 +29,11 @@ def main() -> int:
             return 1
         print(f"{a.out} is up to date with conf/")
         return 0
-    a.out.write_text(compose_params(ROOT / "conf", a.overrides))
-    print(f"wrote {a.out}")
+    stamp = ROOT / ".dvc" / "tmp" / f"compose_params-{a.out.name}.json"
+    if compose_if_changed(ROOT / "conf", a.out, stamp, a.overrides):
+        print(f"wrote {a.out}")
+    else:
+        print(f"{a.out} is up to date with conf/ (nothing changed since it was written)")
     return 0
 
 

@@ -245,3 +245,37 @@ def test_an_interrupt_stops_the_running_stages_and_propagates(tmp_path):
     assert procs[0].returncode != -15  # stopped by SIGINT
     assert procs[1].returncode == -15  # ignored SIGINT, stopped by SIGTERM
     assert time.perf_counter() - t0 < 30
+
+
+def test_the_yaml_memo_parses_each_text_once_and_hands_out_copies():
+    import dvc.utils.serialize._yaml as dvc_yaml
+
+    from drawer_lib.schedule import yaml_parse_memo
+
+    original = dvc_yaml.parse_yaml
+    with yaml_parse_memo() as cache:
+        a = dvc_yaml.parse_yaml("x: {y: [1, 2]}\n", "params.yaml")
+        a["x"]["y"].append(3)  # a caller that edits its copy
+        b = dvc_yaml.parse_yaml("x: {y: [1, 2]}\n", "params.yaml")
+        c = dvc_yaml.parse_yaml("x: {y: [1, 5]}\n", "params.yaml")  # the file changed: parsed anew
+        assert len(cache) == 2
+    assert b == {"x": {"y": [1, 2]}} and c == {"x": {"y": [1, 5]}}
+    assert dvc_yaml.parse_yaml is original
+
+
+@pytest.mark.dvc
+def test_a_parameter_change_is_planned_with_the_yaml_memo(tmp_path):
+    from drawer_lib.schedule import dvc_graph
+
+    d = tmp_path / "proj"
+    d.mkdir()
+    (d / "params.yaml").write_text("p: {a: 1, b: 2}\nq: 3\n")
+    (d / "dvc.yaml").write_text("stages:\n" + "".join(
+        f"  s{k}:\n    cmd: python -c \"open('s{k}.txt', 'w').write('{k}')\"\n    params: [{key}]\n    outs: [s{k}.txt]\n"
+        for k, key in enumerate(["p.a", "p.b", "q", "p.a"])))
+    env = {**os.environ, "DVC_NO_ANALYTICS": "1"}
+    for cmd in (["git", "init", "-q"], [sys.executable, "-m", "dvc", "init", "-q"], [sys.executable, "-m", "dvc", "repro", "-q"]):
+        subprocess.run(cmd, cwd=d, env=env, check=True, capture_output=True)
+    assert dvc_graph(d)[1] == set()
+    (d / "params.yaml").write_text("p: {a: 1, b: 7}\nq: 3\n")
+    assert dvc_graph(d)[1] == {"s1"}

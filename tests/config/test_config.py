@@ -13,7 +13,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from drawer_lib.capture.config import CaptureConfig, SceneConfig
-from drawer_lib.config.compose import compose_params, params_diff
+from drawer_lib.config.compose import compose_if_changed, compose_params, params_diff
 from drawer_lib.config.typed import to_tree, to_typed
 from drawer_lib.errors import ConfigError
 from drawer_lib.mesh.config import MeshConfig
@@ -169,3 +169,20 @@ def test_appearance_schedule_is_by_steps_with_an_optional_time_cap():
     assert AppearanceConfig(max_seconds=60.0).max_seconds == 60.0
     with pytest.raises(ConfigError, match="appearance.max_seconds"):
         AppearanceConfig(max_seconds=0.0)
+
+
+def test_compose_if_changed_skips_only_when_conf_and_the_written_file_are_unchanged(tmp_path):
+    import shutil
+
+    conf, out, stamp = tmp_path / "conf", tmp_path / "params.yaml", tmp_path / "stamp.json"
+    shutil.copytree(CONF, conf)
+    assert compose_if_changed(conf, out, stamp) and out.read_text() == compose_params(CONF)
+    assert not compose_if_changed(conf, out, stamp)  # nothing changed
+    mesh = conf / "mesh" / "default.yaml"
+    mesh.write_text(mesh.read_text().replace("target_faces: 200000", "target_faces: 100000"))
+    assert compose_if_changed(conf, out, stamp) and "target_faces: 100000" in out.read_text()
+    out.write_text(out.read_text().replace("target_faces: 100000", "target_faces: 5"))  # a hand edit
+    assert compose_if_changed(conf, out, stamp) and "target_faces: 100000" in out.read_text()
+    assert compose_if_changed(conf, out, stamp, ["seed=3"]) and "seed: 3" in out.read_text()  # overrides count
+    stamp.write_text("not json")  # a broken stamp is only a cache miss
+    assert compose_if_changed(conf, out, stamp) and not compose_if_changed(conf, out, stamp)
