@@ -58,6 +58,23 @@ def _p_min(op):
     return np.log(ALPHA_MIN / op) - 1e-6
 
 
+@njit(cache=True, inline="always")
+@no_type_check
+def _weight(ca, cb, cc, op, p_min, dx, dy):
+    """exp(p), p = -(a dx^2 + 2 b dx dy + c dy^2) / 2, of a Gaussian (conic a, b, c, opacity op,
+    ``_p_min`` bound p_min) at offset (dx, dy) of a pixel centre from its mean, when that pixel
+    takes a contribution from it (p <= 0 and min(ALPHA_MAX, op exp(p)) >= ALPHA_MIN); else 0.0
+    (a contribution's exp(p) is never 0: p >= p_min > -inf). The one test of the forward pass
+    and of the recomputing backward, so the two agree on every contribution."""
+    p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
+    if p > 0.0 or p < p_min:
+        return 0.0
+    G = np.exp(p)
+    if min(ALPHA_MAX, op * G) < ALPHA_MIN:
+        return 0.0
+    return G
+
+
 @njit(parallel=True, cache=True)
 @no_type_check
 def footprints(means2d, conics, opacities, radii, ext):
@@ -369,14 +386,10 @@ def composite_forward(P, offsets, ids, w_off, w_tiles, width, height, tile,
                         ix = px - px0
                         if done[iy, ix]:
                             continue
-                        dx = mx - (px + 0.5)
-                        p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                        if p > 0.0 or p < p_min:
+                        G = _weight(ca, cb, cc, op, p_min, mx - (px + 0.5), dy)
+                        if G == 0.0:
                             continue
-                        G = np.exp(p)
                         a = min(ALPHA_MAX, op * G)
-                        if a < ALPHA_MIN:
-                            continue
                         Tp = T[iy, ix]
                         nT = Tp * (1.0 - a)
                         if nT <= T_MIN:
@@ -469,12 +482,8 @@ def composite_backward(P, offsets, ids, slot, w_off, w_tiles, width, height, til
                         for px in range(rxa[iy], rxb[iy]):
                             if j > last[py, px]:
                                 continue
-                            dx = mx - (px + 0.5)
-                            p = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                            if p > 0.0 or p < p_min:
-                                continue
-                            G = np.exp(p)
-                            if min(ALPHA_MAX, op * G) < ALPHA_MIN:
+                            G = _weight(ca, cb, cc, op, p_min, mx - (px + 0.5), dy)
+                            if G == 0.0:
                                 continue
                             own_g[n] = G
                             own_q[n] = (iy << 16) | (px - px0)
