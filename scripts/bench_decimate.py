@@ -45,6 +45,7 @@ from drawer_lib.mesh.clean import CleanConfig, clean_mesh  # noqa: E402
 from drawer_lib.mesh.config import MeshConfig  # noqa: E402
 from drawer_lib.mesh.extract import marching_cubes_mesh, sdf_grid  # noqa: E402
 from drawer_lib.mesh.pipeline import extract_mesh  # noqa: E402
+from drawer_lib.metrics.geometry import SurfaceDistance, sample_surface  # noqa: E402
 from drawer_lib.sdf.io import load_field  # noqa: E402
 
 SCENE = ROOT / "out" / "kitchen_small"
@@ -93,14 +94,9 @@ def raw_meshes(only: list[str] | None) -> dict[str, tuple[trimesh.Trimesh, float
 
 
 def surface_distance(a: trimesh.Trimesh, b: trimesh.Trimesh, n: int = 200_000) -> np.ndarray:
-    """Distances from ``n`` points sampled on ``a`` to the surface of ``b``."""
-    import open3d as o3d
-
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(np.asarray(b.vertices, np.float32)),
-                        o3d.core.Tensor(np.asarray(b.faces, np.uint32)))
-    p, _ = trimesh.sample.sample_surface(a, n, seed=0)
-    return scene.compute_distance(o3d.core.Tensor(p.astype(np.float32))).numpy()
+    """Distances from ``n`` area-uniform points on ``a`` to the surface of ``b`` (the geometry
+    metrics' own sampler and exact point-to-triangle distance)."""
+    return SurfaceDistance(b)(sample_surface(a, n, seed=0).points)[0]
 
 
 def main() -> None:
