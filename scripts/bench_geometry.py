@@ -19,6 +19,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+import drawer_lib  # noqa: F401, I001  (before torch: the library's OpenMP wait policy, as a stage runs)
 import torch
 import trimesh
 

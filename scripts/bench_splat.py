@@ -9,25 +9,38 @@ CUDA-only packed cumprod, and its `_isect_tiles` is a Python loop per Gaussian. 
 replaces those three with short pure-PyTorch shims (vectorised over the Gaussians of a tile;
 same termination rule) and times projection + SH + compositing, forward and backward.
 
-Ours and the reference run alternately, ``--repeat`` rounds after one warm-up round; in a round
-each is called three times in a row (warm, as in a training loop) and its median call kept. The
-speed-up is the median of the rounds' own ratios (with their range), so that the machine's load,
-which drifts over seconds, hits both sides of each ratio alike.
+Ours and the reference run in two worker processes, alternately: ``--repeat`` rounds after one
+warm-up round; in a round each is called three times in a row (warm, as in a training loop) and
+its median call kept. The speed-up is the median of the rounds' own ratios (with their range), so
+that the machine's load, which drifts over seconds, hits both sides of each ratio alike. Only one
+worker computes at a time (the other waits on its pipe).
+
+Two processes, because each side gets its own OpenMP wait policy, as it runs for its users:
+ours imports drawer_lib first, which makes torch's OpenMP workers wait passively (see
+``drawer_lib/__init__.py``: spinning workers take the cores from the numba kernels); the
+reference is pure torch, with libgomp's default (spin, then sleep), which suits its hundreds of
+small torch ops better (``--ref-wait-policy PASSIVE`` measures it the other way).
 
     python scripts/bench_splat.py [--repeat 7] [--sizes 128x96 256x192] [--counts 5000 20000]
 """
 
 import argparse
+import json
 import math
+import os
+import subprocess
 import sys
+import tempfile
 import time
 import types
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
-import torch
 
-from drawer_lib.geometry.camera import Camera, Intrinsics
-from drawer_lib.splat.render import Gaussians, render
+if os.environ.get("BENCH_SPLAT_WORKER") == "ours":
+    import drawer_lib  # noqa: F401  (before torch: the library's OpenMP wait policy, as the pipeline runs)
+import torch  # noqa: E402
 
 SH_DEGREE = 3
 
@@ -125,7 +138,7 @@ def _isect_tiles(means2d, radii, depths, tile_size, tile_width, tile_height):
     return torch.cat(gs).int(), offsets
 
 
-def gsplat_reference(params, cam: Camera, tile: int = 16):
+def gsplat_reference(params, cam, tile: int = 16):
     import gsplat.cuda._torch_impl as T
     import gsplat.cuda._wrapper as Wr
 
@@ -151,18 +164,97 @@ def gsplat_reference(params, cam: Camera, tile: int = 16):
     return rgb[0], alpha[0, ..., 0]
 
 
-def interleaved(fns: dict, rounds: int, block: int = 3, warmup: int = 1) -> dict[str, np.ndarray]:
-    """Seconds per call of each function in ``fns`` (name -> callable), one value per round: each
-    round calls every function ``block`` times in a row (warm caches and buffers, as in a
-    training loop) and keeps the median of the block; ``warmup`` untimed rounds first."""
-    ts = {k: [] for k in fns}
-    for r in range(warmup + rounds):
-        for k, fn in fns.items():
-            block_ts = []
-            for _ in range(block):
+def camera(W: int, H: int) -> SimpleNamespace:
+    """The benchmark's pinhole camera at the origin looking down +z (f = 0.8 W): what the
+    reference reads of one (``params``, ``w2c``, ``center``, ``width``, ``height``)."""
+    f = 0.8 * W
+    return SimpleNamespace(intrinsics=SimpleNamespace(params=(f, f, W / 2, H / 2)), w2c=np.eye(4),
+                           center=np.zeros(3), width=W, height=H)
+
+
+def worker(side: str) -> None:
+    """One side of the benchmark, driven by JSON lines on stdin: {"setup": [W, H, N]} builds the
+    scene; {"time": block, "backward": bool} answers with the seconds of ``block`` calls;
+    {"image": path} saves the forward RGB [H, W, 3] there."""
+    threads = int(os.environ.get("BENCH_SPLAT_THREADS", "0")) or os.cpu_count() or 1
+    torch.set_num_threads(threads)
+    fn = None
+    for line in sys.stdin:
+        cmd = json.loads(line)
+        if "setup" in cmd:
+            W, H, n = cmd["setup"]
+            params = [t.clone().requires_grad_(True) for t in scene(n)]
+            if side == "ours":
+                import numba
+
+                from drawer_lib.geometry.camera import Camera, Intrinsics
+                from drawer_lib.splat.render import Gaussians, render
+
+                numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+                cam = Camera(Intrinsics(0.8 * W, 0.8 * W, W / 2, H / 2, W, H), np.eye(4))
+
+                def fn(backward=True, cam=cam, params=params):
+                    out = render(Gaussians(*params), cam, SH_DEGREE)
+                    if backward:
+                        for t in params:  # as a training step's optimizer.zero_grad(set_to_none=True)
+                            t.grad = None
+                        (out.rgb.sum() + out.alpha.sum()).backward()
+                    return out.rgb
+            else:
+                cam = camera(W, H)
+
+                def fn(backward=True, cam=cam, params=params):
+                    rgb, alpha = gsplat_reference(params, cam)
+                    if backward:
+                        for t in params:
+                            t.grad = None
+                        (rgb.sum() + alpha.sum()).backward()
+                    return rgb
+            reply = {"ok": True}
+        elif "time" in cmd:
+            ts = []
+            for _ in range(cmd["time"]):
                 t = time.perf_counter()
-                fn()
-                block_ts.append(time.perf_counter() - t)
+                fn(cmd.get("backward", True))
+                ts.append(time.perf_counter() - t)
+            reply = {"s": ts}
+        elif "image" in cmd:
+            with torch.no_grad():
+                np.save(cmd["image"], fn(False).detach().numpy())
+            reply = {"ok": True}
+        else:
+            raise SystemExit(f"bench_splat worker: unknown command {cmd}")
+        print(json.dumps(reply), flush=True)
+
+
+class Worker:
+    """A worker process of one side (``side``: ours / ref) with the environment ``env``."""
+
+    def __init__(self, side: str, env: dict):
+        self.p = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                  env={**env, "BENCH_SPLAT_WORKER": side})
+
+    def __call__(self, **cmd):
+        self.p.stdin.write(json.dumps(cmd) + "\n")
+        self.p.stdin.flush()
+        line = self.p.stdout.readline()
+        if not line:
+            raise SystemExit(f"bench_splat: the worker exited with {self.p.wait()}")
+        return json.loads(line)
+
+    def close(self):
+        self.p.stdin.close()
+        self.p.wait()
+
+
+def interleaved(calls: dict, rounds: int, block: int = 3, warmup: int = 1) -> dict[str, np.ndarray]:
+    """Seconds per call of each entry of ``calls`` (name -> (worker, backward)), one value per
+    round: each round has every entry's worker run ``block`` calls in a row (warm caches and
+    buffers, as in a training loop) and keeps their median; ``warmup`` untimed rounds first."""
+    ts = {k: [] for k in calls}
+    for r in range(warmup + rounds):
+        for k, (w, backward) in calls.items():
+            block_ts = w(time=block, backward=backward)["s"]
             if r >= warmup:
                 ts[k].append(float(np.median(block_ts)))
     return {k: np.asarray(v) for k, v in ts.items()}
@@ -173,50 +265,53 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--sizes", nargs="+", default=["128x96", "256x192"])
     ap.add_argument("--counts", nargs="+", type=int, default=[5000, 20000])
+    ap.add_argument("--threads", type=int, default=0, help="torch and numba threads per side (default: every core)")
+    ap.add_argument("--ref-wait-policy", default="", help="OMP_WAIT_POLICY of the reference's process "
+                    "(default: libgomp's own, unset)")
     ap.add_argument("--no-reference", action="store_true", help="skip gsplat's reference path")
     a = ap.parse_args()
-    torch.set_num_threads(2)
-    try:
-        import gsplat  # noqa: F401
-        have_ref = not a.no_reference
-    except ImportError:
+    have_ref = not a.no_reference
+    if have_ref and subprocess.run([sys.executable, "-c", "import gsplat"], capture_output=True).returncode != 0:
         have_ref = False
         print("gsplat not installed (pip install gsplat==1.5.3): reference column skipped")
+    env = {**os.environ, "BENCH_SPLAT_THREADS": str(a.threads)}
+    ours = Worker("ours", env)  # with this shell's OMP_WAIT_POLICY if it sets one, else drawer_lib's
+    ref = None
+    if have_ref:
+        ref_env = {k: v for k, v in env.items() if k != "OMP_WAIT_POLICY"}
+        if a.ref_wait_policy:
+            ref_env["OMP_WAIT_POLICY"] = a.ref_wait_policy
+        ref = Worker("ref", ref_env)
     print(f"{'size':>8} {'N':>6} | {'ours fwd':>9} {'ours f+b':>9} | {'gsplat-torch f+b':>16} | "
           f"{'speed-up (range)':>18} | {'max |rgb diff|':>14}")
-    for size in a.sizes:
-        W, H = map(int, size.split("x"))
-        cam = Camera(Intrinsics(0.8 * W, 0.8 * W, W / 2, H / 2, W, H), np.eye(4))
-        for n in a.counts:
-            params = [t.clone().requires_grad_(True) for t in scene(n)]
-
-            def zero_grad():  # as a training step's optimizer.zero_grad(set_to_none=True), for both
-                for t in params:
-                    t.grad = None
-
-            def ours(backward=True):
-                out = render(Gaussians(*params), cam, SH_DEGREE)
-                if backward:
-                    zero_grad()
-                    (out.rgb.sum() + out.alpha.sum()).backward()
-                return out
-
-            def ref():
-                rgb, alpha = gsplat_reference(params, cam)
-                zero_grad()
-                (rgb.sum() + alpha.sum()).backward()
-
-            fns = {"fwd": lambda: ours(False), "fb": ours} | ({"ref": ref} if have_ref else {})
-            t = interleaved(fns, a.repeat)
-            row = f"{size:>8} {n:>6} | {1000 * np.median(t['fwd']):8.1f}  {1000 * np.median(t['fb']):8.1f}  |"
-            if have_ref:
-                ratio = t["ref"] / t["fb"]
-                with torch.no_grad():
-                    diff = float((gsplat_reference(params, cam)[0] - ours(False).rgb).abs().max())
-                row += (f" {1000 * np.median(t['ref']):15.1f}  | {np.median(ratio):5.1f}x ({ratio.min():.1f}-"
-                        f"{ratio.max():.1f}) | {diff:14.2e}")
-            print(row + "   (ms)", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for size in a.sizes:
+            W, H = map(int, size.split("x"))
+            for n in a.counts:
+                calls = {"fwd": (ours, False), "fb": (ours, True)}
+                for w in [ours] + ([ref] if ref else []):
+                    w(setup=[W, H, n])
+                if ref:
+                    calls["ref"] = (ref, True)
+                t = interleaved(calls, a.repeat)
+                row = f"{size:>8} {n:>6} | {1000 * np.median(t['fwd']):8.1f}  {1000 * np.median(t['fb']):8.1f}  |"
+                if ref:
+                    ratio = t["ref"] / t["fb"]
+                    imgs = []
+                    for name, w in (("ours", ours), ("ref", ref)):
+                        path = str(Path(tmp) / f"{name}.npy")
+                        w(image=path)
+                        imgs.append(np.load(path))
+                    diff = float(np.abs(imgs[0] - imgs[1]).max())
+                    row += (f" {1000 * np.median(t['ref']):15.1f}  | {np.median(ratio):5.1f}x ({ratio.min():.1f}-"
+                            f"{ratio.max():.1f}) | {diff:14.2e}")
+                print(row + "   (ms)", flush=True)
+    for w in [ours] + ([ref] if ref else []):
+        w.close()
 
 
 if __name__ == "__main__":
-    main()
+    if os.environ.get("BENCH_SPLAT_WORKER"):
+        worker(os.environ["BENCH_SPLAT_WORKER"])
+    else:
+        main()

@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 _RUN_CODE = """
 import hashlib, json, statistics, sys, time
+import drawer_lib  # first, as a stage imports it: the library's settings that must precede torch
 import torch, trimesh
 from hydra import compose, initialize_config_dir
 from drawer_lib.config.typed import to_typed

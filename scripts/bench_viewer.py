@@ -18,10 +18,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import torch
-import viser
-
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+import drawer_lib  # noqa: E402, F401  (before torch: the library's OpenMP wait policy, as the viewer runs)
+import torch  # noqa: E402
+import viser  # noqa: E402
 from drawer_lib.splat.ply import write_gaussian_ply  # noqa: E402
 from drawer_lib.twin.gaussians import concat, load_gaussian_ply  # noqa: E402
 from drawer_lib.viewer.app import TwinViewer  # noqa: E402

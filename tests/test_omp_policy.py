@@ -1,0 +1,65 @@
+"""drawer_lib's OpenMP wait policy (``drawer_lib/__init__.py``): passive unless the environment
+chose, set only while torch is not loaded yet, and every stage imports drawer_lib before torch."""
+
+import ast
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _run(code: str, **env) -> str:
+    full = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"} | env
+    full["PYTHONPATH"] = str(ROOT)
+    r = subprocess.run([sys.executable, "-c", code], env=full, capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.strip()
+
+
+REPORT = "import os, drawer_lib; print(os.environ.get('OMP_WAIT_POLICY'), drawer_lib.omp_wait_policy())"
+
+
+def test_passive_when_the_environment_does_not_choose():
+    assert _run(REPORT) == "PASSIVE PASSIVE"
+
+
+@pytest.mark.parametrize("value", ["ACTIVE", "passive"])
+def test_an_explicit_choice_is_kept(value):
+    assert _run(REPORT, OMP_WAIT_POLICY=value) == f"{value} {value}"
+
+
+def test_torch_loaded_first_is_left_alone_and_reported_as_default():
+    # libgomp read its settings when torch loaded: setting the variable then would claim an effect it has not
+    assert _run("import torch; " + REPORT) == "None default"
+
+
+def _imports_before_drawer_lib(path: Path) -> list[str] | None:
+    """Top-level modules a stage script imports before its first drawer_lib import (None: none)."""
+    mods = []
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Import):
+            mods += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            mods.append(node.module or "")
+    for i, m in enumerate(mods):
+        if m.split(".")[0] == "drawer_lib":
+            return mods[:i]
+    return None
+
+
+def test_every_stage_imports_drawer_lib_before_anything_that_loads_torch():
+    before: set[str] = set()
+    for path in sorted((ROOT / "stages").glob("*.py")):
+        if path.name == "__init__.py":
+            continue
+        mods = _imports_before_drawer_lib(path)
+        assert mods is not None, f"{path.name}: does not import drawer_lib"
+        before.update(mods)
+    assert before, "expected the stages' hydra / omegaconf imports"
+    # the modules the stages import first must not load torch (if one did, the policy would not apply)
+    code = f"import sys; import {', '.join(sorted(before))}; print('torch' in sys.modules)"
+    assert _run(code) == "False"
