@@ -32,9 +32,25 @@ def test_an_explicit_choice_is_kept(value):
     assert _run(REPORT, OMP_WAIT_POLICY=value) == f"{value} {value}"
 
 
-def test_torch_loaded_first_is_left_alone_and_reported_as_default():
+def _run_full(code: str, **env) -> subprocess.CompletedProcess:
+    full = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "OMP_NUM_THREADS")} | env
+    full["PYTHONPATH"] = str(ROOT)
+    r = subprocess.run([sys.executable, "-c", code], env=full, capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+def test_torch_loaded_first_is_left_alone_reported_as_default_and_warned_about():
     # libgomp read its settings when torch loaded: setting the variable then would claim an effect it has not
-    assert _run("import torch; " + REPORT) == "None default"
+    r = _run_full("import torch; " + REPORT, OMP_NUM_THREADS="2")
+    assert r.stdout.strip() == "None default"
+    assert "RuntimeWarning" in r.stderr and "import drawer_lib first" in r.stderr
+
+
+@pytest.mark.parametrize("env", [{"OMP_NUM_THREADS": "1"}, {"OMP_NUM_THREADS": "2", "OMP_WAIT_POLICY": "ACTIVE"}])
+def test_no_warning_with_one_thread_or_an_explicit_policy(env):
+    r = _run_full("import torch; " + REPORT, **env)
+    assert "RuntimeWarning" not in r.stderr, r.stderr
 
 
 def _imports_before_drawer_lib(path: Path) -> list[str] | None:
