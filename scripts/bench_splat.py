@@ -174,7 +174,8 @@ def camera(W: int, H: int) -> SimpleNamespace:
 
 def worker(side: str) -> None:
     """One side of the benchmark, driven by JSON lines on stdin: {"setup": [W, H, N]} builds the
-    scene; {"time": block, "backward": bool} answers with the seconds of ``block`` calls;
+    scene; {"time": block, "backward": bool} answers with the seconds of ``block`` calls (forward
+    alone: without autograd, as an evaluation render);
     {"image": path} saves the forward RGB [H, W, 3] there."""
     threads = int(os.environ.get("BENCH_SPLAT_THREADS", "0")) or os.cpu_count() or 1
     torch.set_num_threads(threads)
@@ -213,9 +214,11 @@ def worker(side: str) -> None:
             reply = {"ok": True}
         elif "time" in cmd:
             ts = []
+            backward = cmd.get("backward", True)
             for _ in range(cmd["time"]):
                 t = time.perf_counter()
-                fn(cmd.get("backward", True))
+                with torch.set_grad_enabled(backward):  # a forward alone renders as evaluation does
+                    fn(backward)
                 ts.append(time.perf_counter() - t)
             reply = {"s": ts}
         elif "image" in cmd:
