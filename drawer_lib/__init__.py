@@ -10,7 +10,7 @@ Threads: the heavy kernels here (compositor, projection, SH, SDF grid encoding, 
 each parallel op, by default for ~300k spins (milliseconds), and so keep the other cores busy
 while the numba kernel that follows wants them: on 2 cores a training step of the paper's method
 took 64-70 ms with both threads, about what one thread gives (74 ms), and 44-50 ms once the
-workers wait passively (``scripts/bench_splat.py``, ``docs/speed.md``). Importing drawer_lib
+workers wait passively (docs/speed.md, section *Threads*). Importing drawer_lib
 therefore sets ``OMP_WAIT_POLICY=PASSIVE`` unless the environment already sets it (libgomp reads
 it once, when torch loads, so this only takes effect if drawer_lib is imported before torch;
 ``omp_wait_policy()`` says which one this process got). Results do not depend on it: only when

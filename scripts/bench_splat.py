@@ -172,6 +172,17 @@ def camera(W: int, H: int) -> SimpleNamespace:
                            center=np.zeros(3), width=W, height=H)
 
 
+def _finish(rgb, alpha, params, backward: bool):
+    """The benchmark's loss on one side's render (sum of RGB and alpha), backpropagated when
+    ``backward`` after the gradients are set to None, as a training step's
+    ``optimizer.zero_grad(set_to_none=True)`` does; returns ``rgb``."""
+    if backward:
+        for t in params:
+            t.grad = None
+        (rgb.sum() + alpha.sum()).backward()
+    return rgb
+
+
 def worker(side: str) -> None:
     """One side of the benchmark, driven by JSON lines on stdin: {"setup": [W, H, N]} builds the
     scene; {"time": block, "backward": bool} answers with the seconds of ``block`` calls (forward
@@ -196,21 +207,12 @@ def worker(side: str) -> None:
 
                 def fn(backward=True, cam=cam, params=params):
                     out = render(Gaussians(*params), cam, SH_DEGREE)
-                    if backward:
-                        for t in params:  # as a training step's optimizer.zero_grad(set_to_none=True)
-                            t.grad = None
-                        (out.rgb.sum() + out.alpha.sum()).backward()
-                    return out.rgb
+                    return _finish(out.rgb, out.alpha, params, backward)
             else:
                 cam = camera(W, H)
 
                 def fn(backward=True, cam=cam, params=params):
-                    rgb, alpha = gsplat_reference(params, cam)
-                    if backward:
-                        for t in params:
-                            t.grad = None
-                        (rgb.sum() + alpha.sum()).backward()
-                    return rgb
+                    return _finish(*gsplat_reference(params, cam), params, backward)
             reply = {"ok": True}
         elif "time" in cmd:
             ts = []

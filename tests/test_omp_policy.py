@@ -12,44 +12,39 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _run(code: str, **env) -> str:
-    full = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"} | env
-    full["PYTHONPATH"] = str(ROOT)
-    r = subprocess.run([sys.executable, "-c", code], env=full, capture_output=True, text=True, cwd=ROOT)
-    assert r.returncode == 0, r.stderr
-    return r.stdout.strip()
-
-
-REPORT = "import os, drawer_lib; print(os.environ.get('OMP_WAIT_POLICY'), drawer_lib.omp_wait_policy())"
-
-
-def test_passive_when_the_environment_does_not_choose():
-    assert _run(REPORT) == "PASSIVE PASSIVE"
-
-
-@pytest.mark.parametrize("value", ["ACTIVE", "passive"])
-def test_an_explicit_choice_is_kept(value):
-    assert _run(REPORT, OMP_WAIT_POLICY=value) == f"{value} {value}"
-
-
-def _run_full(code: str, **env) -> subprocess.CompletedProcess:
-    full = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "OMP_NUM_THREADS")} | env
+def _run(code: str, drop: tuple[str, ...] = ("OMP_WAIT_POLICY",), **env) -> subprocess.CompletedProcess:
+    """``code`` in a fresh interpreter, with the variables ``drop`` removed from this environment
+    and ``env`` added."""
+    full = {k: v for k, v in os.environ.items() if k not in drop} | env
     full["PYTHONPATH"] = str(ROOT)
     r = subprocess.run([sys.executable, "-c", code], env=full, capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     return r
 
 
+NO_POLICY_NO_THREADS = ("OMP_WAIT_POLICY", "OMP_NUM_THREADS")
+REPORT = "import os, drawer_lib; print(os.environ.get('OMP_WAIT_POLICY'), drawer_lib.omp_wait_policy())"
+
+
+def test_passive_when_the_environment_does_not_choose():
+    assert _run(REPORT).stdout.strip() == "PASSIVE PASSIVE"
+
+
+@pytest.mark.parametrize("value", ["ACTIVE", "passive"])
+def test_an_explicit_choice_is_kept(value):
+    assert _run(REPORT, OMP_WAIT_POLICY=value).stdout.strip() == f"{value} {value}"
+
+
 def test_torch_loaded_first_is_left_alone_reported_as_default_and_warned_about():
     # libgomp read its settings when torch loaded: setting the variable then would claim an effect it has not
-    r = _run_full("import torch; " + REPORT, OMP_NUM_THREADS="2")
+    r = _run("import torch; " + REPORT, drop=NO_POLICY_NO_THREADS, OMP_NUM_THREADS="2")
     assert r.stdout.strip() == "None default"
     assert "RuntimeWarning" in r.stderr and "import drawer_lib first" in r.stderr
 
 
 @pytest.mark.parametrize("env", [{"OMP_NUM_THREADS": "1"}, {"OMP_NUM_THREADS": "2", "OMP_WAIT_POLICY": "ACTIVE"}])
 def test_no_warning_with_one_thread_or_an_explicit_policy(env):
-    r = _run_full("import torch; " + REPORT, **env)
+    r = _run("import torch; " + REPORT, drop=NO_POLICY_NO_THREADS, **env)
     assert "RuntimeWarning" not in r.stderr, r.stderr
 
 
@@ -78,4 +73,4 @@ def test_every_stage_imports_drawer_lib_before_anything_that_loads_torch():
     assert before, "expected the stages' hydra / omegaconf imports"
     # the modules the stages import first must not load torch (if one did, the policy would not apply)
     code = f"import sys; import {', '.join(sorted(before))}; print('torch' in sys.modules)"
-    assert _run(code) == "False"
+    assert _run(code).stdout.strip() == "False"
