@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench profile bench-capture bench-video bench-geometry bench-splat bench-articulation fit-decisions study view bench-viewer clean
+.PHONY: run test test-all ci-dashboard setup system-deps params check-params bench profile bench-capture bench-video bench-geometry bench-splat benchmark study view bench-viewer clean
 
 RUN_JOBS ?= 2
 RUN_ARGS ?=
@@ -51,7 +51,7 @@ check-params: setup ## fail when params.yaml is stale
 
 BENCH_REF ?= e1246f9
 BENCH_ONLY ?= noop raster step mesh sdf sdf4x
-bench: setup ## the speed figures (issue 22) side by side with BENCH_REF, in one run (~25 min; needs `make run` first)
+bench: setup ## the speed figures (docs/speed.md) side by side with BENCH_REF, in one run (~25 min; needs `make run` first)
 	$(BIN)/pip install -q gsplat==1.5.3
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/bench_speed.py --ref $(BENCH_REF) --only $(BENCH_ONLY)
 
@@ -69,16 +69,9 @@ bench-splat: setup ## CPU rasterizer fwd+bwd vs gsplat's pure-PyTorch path (inst
 	$(BIN)/pip install -q gsplat==1.5.3
 	$(BIN)/python scripts/bench_splat.py
 
-BENCH_OUT ?= /tmp/bench_articulation
-bench-articulation: setup ## perception on the train and the test split (20 kitchens each, generic labels; ~1 h)
-	$(BIN)/python scripts/bench_articulation.py --split train --out $(BENCH_OUT)
-	$(BIN)/python scripts/bench_articulation.py --split test --out $(BENCH_OUT)
-
-fit-decisions: setup ## refit the type decision's weights on the train split (after bench-articulation), then re-score both splits
-	$(BIN)/python scripts/fit_decisions.py --bench $(BENCH_OUT)/train --write
+benchmark: setup ## the articulation benchmark alone: its kitchens, the decision weights fitted on the train split, both splits' tables (bench/eval/<split>/table.md)
 	$(BIN)/python scripts/compose_params.py
-	$(BIN)/python scripts/bench_articulation.py --split train --out $(BENCH_OUT) --reuse --articulate-only
-	$(BIN)/python scripts/bench_articulation.py --split test --out $(BENCH_OUT) --reuse --articulate-only
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS) $(RUN_ARGS) fit_decisions bench_eval
 
 STUDY ?= ste_official_lr ste_pos_lr_1.2e-3 ste_pos_lr_1.6e-2 ste_short ste_tight_bounds ste_no_densify ste_displaced_1cm ste_tsdf_anchor
 JOBS ?= 2
@@ -110,4 +103,4 @@ bench-geometry: setup ## geometry components (encoding, train step, TSDF, mono c
 	$(BIN)/python scripts/bench_geometry.py
 
 clean: ## remove generated outputs (DVC's cache keeps them)
-	rm -rf out multirun outputs
+	rm -rf out bench reports multirun outputs

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 LAYOUT = {
-    "capture": {  # the capture format (DESIGN §4); every sub-folder is its own DVC output
+    "capture": {  # the capture format (docs/formats.md#capture); every sub-folder is its own DVC output
         "dir": "capture",
         "transforms": "capture/transforms.json",
         "manifest": "capture/manifest.json",
@@ -52,7 +52,27 @@ LAYOUT = {
     "curve": "curve.csv",  # in every iterative stage's folder
 }
 
+# The articulation benchmark, under ``paths.bench``: kitchen ``k`` of split ``s`` is a scene folder
+# ``<s>/<kitchen_prefix><k>/`` laid out as LAYOUT (its capture, sdf, mesh, decompose and articulate
+# with the prior weights); ``fit/`` the decision weights fitted on the train split; ``eval/<s>/``
+# each split's kitchens articulated with them (``kitchens/``), scored, and the split's table.
+BENCH = {
+    "kitchen_prefix": "kitchen_",
+    "fit": "fit",
+    "weights": "fit/weights.json",
+    "cv": "fit/cv.csv",
+    "cases": "fit/cases.json",
+    "eval": "eval",
+    "kitchens": "kitchens",  # in eval/<split>/: each kitchen's articulation with the fitted weights
+    "rows": "rows.json",  # in eval/<split>/: each kitchen's scores
+}
+
 CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
+
+
+def bench_name(key: str) -> str:
+    """A benchmark file's name inside its folder: ``bench_name("weights")`` -> ``weights.json``."""
+    return BENCH[key].rsplit("/", 1)[-1]
 
 
 def capture_name(key: str) -> str:
@@ -118,3 +138,32 @@ class ScenePaths:
     @property
     def parts(self) -> Path:
         return self.file("articulate", "parts")
+
+
+@dataclass(frozen=True)
+class BenchPaths:
+    """Absolute paths of the articulation benchmark under ``root`` (the ``paths.bench`` root)."""
+
+    root: Path
+
+    def kitchen(self, split: str, k: int) -> ScenePaths:
+        """Kitchen ``k`` of ``split`` as a scene: ``<root>/<split>/kitchen_<k>/<stage>/...``."""
+        return ScenePaths(Path(self.root) / split, f"{BENCH['kitchen_prefix']}{int(k)}")
+
+    def split(self, split: str) -> Path:
+        """The folder of a split's kitchens (what the fit and the evaluation depend on)."""
+        return Path(self.root) / split
+
+    @property
+    def fit(self) -> Path:
+        return Path(self.root) / BENCH["fit"]
+
+    @property
+    def weights(self) -> Path:
+        return Path(self.root) / BENCH["weights"]
+
+    def eval(self, split: str) -> Path:
+        """The evaluation of ``split``: ``eval/<split>/`` (its table, ``metrics.json``, rows and
+        under ``kitchens/`` each kitchen's articulation with the fitted weights, as a scene
+        folder)."""
+        return Path(self.root) / BENCH["eval"] / split

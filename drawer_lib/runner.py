@@ -17,7 +17,6 @@ import math
 import os
 import random
 import resource
-import shutil
 import signal
 import sys
 import threading
@@ -30,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.io.atomic import remove_path, replace_path
 from drawer_lib.io.images import write_json
 from drawer_lib.io.manifest import Manifest
 from drawer_lib.paths import LAYOUT, stage_name
@@ -155,13 +155,6 @@ class StageRun:
         return m
 
 
-def _remove(p: Path) -> None:
-    if p.is_dir() and not p.is_symlink():
-        shutil.rmtree(p)
-    elif p.exists() or p.is_symlink():
-        p.unlink()
-
-
 _OWNER = ".owner"  # pid of the process writing a temporary folder
 
 
@@ -193,7 +186,7 @@ def clean_stale(parent: Path) -> list[Path]:
         except (OSError, ValueError):
             pid = -1
         if pid != os.getpid() and (pid <= 0 or not _alive(pid)):
-            _remove(tmp)
+            remove_path(tmp)
             removed.append(tmp)
     return removed
 
@@ -211,7 +204,7 @@ def stage_run(stage: str, out_dir: Path, seed: int) -> Iterator[StageRun]:
     old = out_dir.parent / f".{out_dir.name}.old"
     clean_stale(out_dir.parent)
     for stale in (tmp, old):  # this stage's own leftovers, whoever wrote them
-        _remove(stale)
+        remove_path(stale)
     tmp.mkdir()
     (tmp / _OWNER).write_text(str(os.getpid()))
     run = StageRun(stage, out_dir, tmp, seed)
@@ -223,14 +216,11 @@ def stage_run(stage: str, out_dir: Path, seed: int) -> Iterator[StageRun]:
     except BaseException:
         for c in run._curves:
             c.close()
-        _remove(tmp)
+        remove_path(tmp)
         raise
     finally:
         _restore(handlers)
-    if out_dir.exists() or out_dir.is_symlink():
-        out_dir.rename(old)
-    tmp.rename(out_dir)
-    _remove(old)
+    replace_path(tmp, out_dir, aside=old)  # a cut between its renames: clean_stale puts .old back
     print(f"[{stage}] done in {metrics['wall_s']:.1f} s, peak {metrics['peak_rss_mb']:.0f} MiB -> {out_dir}",
           file=sys.stderr)
 

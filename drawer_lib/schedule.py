@@ -13,7 +13,7 @@ can share the cores instead. This module plans that and runs it with DVC itself:
 2. every planned stage runs as its own ``dvc --wait-for-lock repro --single-item <stage>``
    process once the planned stages it depends on have finished. DVC releases the repository's
    lock while a stage's command runs and updates ``dvc.lock`` under it, so several of these
-   processes share one workspace (``../shared/reference/dvc_hydra.md`` §7). A stage whose inputs
+   processes share one workspace (``unlocked_repo`` in DVC's ``dvc/stage/run.py``). A stage whose inputs
    came out unchanged is skipped by DVC, and the run-cache restores instead of running as usual.
 
 Threads are part of a result: the thread count changes the order of float sums in torch's and
@@ -54,7 +54,8 @@ THREAD_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUM
 TYPICAL_WALL_S = {"capture": 15, "sdf": 450, "geometry": 500, "geometry-tsdf": 30, "mesh": 35, "decompose": 20,
                   "articulate": 5, "evaluate": 5, "appearance": 260, "appearance-textured_mesh": 35,
                   "complete": 20, "twin": 35, "stability": 55, "simulate": 20, "ablation": 5,
-                  "geometry_table": 5, "report": 45, "pareto": 1500}
+                  "geometry_table": 5, "report": 45, "pareto": 1500, "bench_kitchen": 50, "fit_decisions": 15,
+                  "bench_eval": 80}
 
 
 def typical_wall_s(stage: str, default: float = 30.0) -> float:

@@ -30,6 +30,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from drawer_lib.report.markdown import md_table  # noqa: E402
+
 VARIANTS = ("textured_mesh", "static_gs", "movable_gs", "movable_gs_ste")
 KEYS = ("psnr", "ssim", "lpips", "n_gaussians", "train_s", "wall_s")
 
@@ -109,18 +111,11 @@ def way_hydra(scene: str, log: Path, sweep: Path, cap: bool = True) -> tuple[flo
 
 def table(res: dict[str, tuple[float, dict]]) -> str:
     ways = list(res)
-    lines = ["| variant | " + " | ".join(f"{w}: PSNR / SSIM / LPIPS" for w in ways)
-             + " | " + " | ".join(f"{w}: stage wall (s)" for w in ways) + " |",
-             "|---|" + "---|" * (2 * len(ways))]
-    for v in VARIANTS:
-        cells = []
-        for w in ways:
-            m = res[w][1][v]
-            cells.append(f"{m['psnr']:.4f} / {m['ssim']:.4f} / {m['lpips']:.4f}")
-        cells += [f"{res[w][1][v]['wall_s']:.1f}" for w in ways]
-        lines.append(f"| {v} | " + " | ".join(cells) + " |")
-    lines.append("| **whole ablation, wall** | " + " | ".join("" for _ in ways) + " | "
-                 + " | ".join(f"**{res[w][0]:.0f}**" for w in ways) + " |")
+    head = ["variant", *(f"{w}: PSNR / SSIM / LPIPS" for w in ways), *(f"{w}: stage wall (s)" for w in ways)]
+    cells = [[v, *(f"{m['psnr']:.4f} / {m['ssim']:.4f} / {m['lpips']:.4f}" for m in (res[w][1][v] for w in ways)),
+              *(f"{res[w][1][v]['wall_s']:.1f}" for w in ways)] for v in VARIANTS]
+    cells.append(["**whole ablation, wall**", *("" for _ in ways), *(f"**{res[w][0]:.0f}**" for w in ways)])
+    lines = [md_table(head, cells).rstrip("\n")]
     ref = ways[0]
     diffs = {w: max(abs(res[w][1][v][k] - res[ref][1][v][k]) for v in VARIANTS for k in ("psnr", "ssim", "lpips"))
              for w in ways[1:]}

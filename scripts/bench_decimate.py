@@ -43,9 +43,10 @@ sys.path.insert(0, str(ROOT))
 from drawer_lib.io.capture import load_capture  # noqa: E402
 from drawer_lib.mesh.clean import CleanConfig, clean_mesh  # noqa: E402
 from drawer_lib.mesh.config import MeshConfig  # noqa: E402
-from drawer_lib.mesh.extract import marching_cubes_mesh, sdf_grid  # noqa: E402
+from drawer_lib.geometry.isosurface import marching_cubes_mesh, sdf_grid  # noqa: E402
 from drawer_lib.mesh.pipeline import extract_mesh  # noqa: E402
 from drawer_lib.metrics.geometry import SurfaceDistance, sample_surface  # noqa: E402
+from drawer_lib.report.markdown import md_table  # noqa: E402
 from drawer_lib.sdf.io import load_field  # noqa: E402
 
 SCENE = ROOT / "out" / "kitchen_small"
@@ -148,15 +149,17 @@ def main() -> None:
         w.writeheader()
         w.writerows(rows)
     plot(rows, args.out / "decimate.png")
-    print(f"\n| mesh | split | faces in -> target | fast_quadric s | pymeshlab s | speed-up | mean / p99 dist, fast_quadric (mm) | mean / p99 dist, pymeshlab (mm) |")
-    print("|---|---|---|---|---|---|---|---|")
+    cells = []
     for name in meshes:
         for frac in FRACTIONS:
             r = {x["decimator"]: x for x in rows if x["mesh"] == name and abs(x["target"] / x["faces_in"] - frac) < 1e-3}
             a, b = r["fast_quadric"], r["pymeshlab"]
-            print(f"| {name} | {a['split']} | {a['faces_in']} -> {a['target']} | {a['seconds']} | {b['seconds']} | "
-                  f"{b['seconds'] / max(a['seconds'], 1e-9):.1f}x | {a['dist_mean_mm']} / {a['dist_p99_mm']} | "
-                  f"{b['dist_mean_mm']} / {b['dist_p99_mm']} |")
+            cells.append([name, a["split"], f"{a['faces_in']} -> {a['target']}", a["seconds"], b["seconds"],
+                          f"{b['seconds'] / max(a['seconds'], 1e-9):.1f}x", f"{a['dist_mean_mm']} / {a['dist_p99_mm']}",
+                          f"{b['dist_mean_mm']} / {b['dist_p99_mm']}"])
+    print()
+    print(md_table(["mesh", "split", "faces in -> target", "fast_quadric s", "pymeshlab s", "speed-up",
+                    "mean / p99 dist, fast_quadric (mm)", "mean / p99 dist, pymeshlab (mm)"], cells), end="")
     print(f"\nwrote {args.out / 'decimate.csv'} and {args.out / 'decimate.png'}")
 
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python
 """The speed figures of the pipeline, each measured side by side for the code now and for a
-reference commit (default: the code before the speed work, issue 22), in one run, alternating
+reference commit (default: the code before the speed work), in one run, alternating
 reference / now so that the machine's noise hits both alike.
 
 The reference is a ``git worktree`` of ``--ref`` (made under ``--ref-dir`` once, reused); every
@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-REF = "e1246f9"  # the code when issue 22 (speed) was taken up
+REF = "e1246f9"  # the code before the speed work (docs/speed.md)
 SCENE = "kitchen_small"
 FIGURES = ("noop", "raster", "step", "mesh", "sdf", "sdf4x")
 

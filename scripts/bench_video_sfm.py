@@ -22,6 +22,7 @@ from helpers import load_scene, render_capture, sensor_cfg  # noqa: E402
 
 from drawer_lib.capture.config import SceneConfig, VideoSource  # noqa: E402
 from drawer_lib.io.capture import load_capture  # noqa: E402
+from drawer_lib.report.markdown import md_row, md_table  # noqa: E402
 from drawer_lib.sfm.video import write_video  # noqa: E402
 
 COLS = ["video_frames_read", "video_frames_kept", "video_frames_registered", "registered_fraction",
@@ -43,15 +44,14 @@ def main() -> None:
         print(f"rendered {a.scene} in {time.perf_counter() - t:.1f} s")
         cap = load_capture(d / "truth")
         frames = [cap.image(i) for i in range(len(cap.frames))]
-        print("| quality | MB | " + " | ".join(COLS) + " |")
-        print("|---" * (len(COLS) + 2) + "|")
+        print(md_table(["quality", "MB", *COLS], []), end="")  # the rows follow as they are measured
         for q in a.quality:
             vid = d / f"q{q:g}.mp4"
             write_video(vid, frames, fps=10, quality=q)
             vs = SceneConfig(source="video", video=VideoSource(str(vid), str(d / "truth")))
             _, m = render_capture(vs, sensor_cfg(matcher=a.matcher), d / f"cap_q{q:g}")
             mb = vid.stat().st_size / 1e6
-            print(f"| {q:g} | {mb:.2f} | " + " | ".join(f"{m.get(c, np.nan):.4g}" for c in COLS) + " |")
+            print(md_row([f"{q:g}", f"{mb:.2f}", *(f"{m.get(c, np.nan):.4g}" for c in COLS)]))
 
 
 if __name__ == "__main__":

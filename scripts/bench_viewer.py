@@ -22,8 +22,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import drawer_lib  # noqa: E402, F401  (before torch: the library's OpenMP wait policy, as the viewer runs)
 import torch  # noqa: E402
 import viser  # noqa: E402
-from drawer_lib.splat.ply import write_gaussian_ply  # noqa: E402
-from drawer_lib.twin.gaussians import concat, load_gaussian_ply  # noqa: E402
+from drawer_lib.report.markdown import md_table  # noqa: E402
+from drawer_lib.splat.gaussians import concat  # noqa: E402
+from drawer_lib.splat.ply import read_gaussian_ply, write_gaussian_ply  # noqa: E402
 from drawer_lib.viewer.app import TwinViewer  # noqa: E402
 from drawer_lib.viewer.browser import HeadlessChromium  # noqa: E402
 from drawer_lib.viewer.scene import load_twin_scene  # noqa: E402
@@ -35,7 +36,7 @@ def replicated(twin: Path, k: int, tmp: Path) -> Path:
         return twin
     out = tmp / f"x{k}"
     shutil.copytree(twin, out, ignore=shutil.ignore_patterns("renders", "urdf", "*.usda", "*.html", "*.viser"))
-    g = load_gaussian_ply(twin / "gaussians" / "static.ply")
+    g = read_gaussian_ply(twin / "gaussians" / "static.ply")
     gen = torch.Generator().manual_seed(0)
     copies = [g] + [type(g)(g.means + 1e-3 * torch.randn(g.means.shape, generator=gen), g.quats, g.scales, g.opacities, g.sh)
                     for _ in range(k - 1)]
@@ -99,11 +100,12 @@ def main() -> None:
         if a.screenshot:
             measure(a.twin, screenshot=a.screenshot, open_parts=[p for p in a.open.split(",") if p])
             print(f"wrote {a.screenshot}")
-    print("\n| twin | Gaussians | read folder (s) | send to scene (s) | page connects (s) | first frame rendered (s) | simulate mode, x real time | unpaced physics, x real time |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    for k, r in rows:
-        name = a.twin.parent.name + ("" if k == 1 else f", static x{k}")
-        print(f"| {name} | {r['n']:,} | {r['read']:.2f} | {r['build']:.2f} | {r['connect']:.2f} | {r['first']:.2f} | {r['rt']:.2f} | {r['headroom']:.1f} |")
+    print()
+    print(md_table(["twin", "Gaussians", "read folder (s)", "send to scene (s)", "page connects (s)",
+                    "first frame rendered (s)", "simulate mode, x real time", "unpaced physics, x real time"],
+                   ([a.twin.parent.name + ("" if k == 1 else f", static x{k}"), f"{r['n']:,}", f"{r['read']:.2f}",
+                     f"{r['build']:.2f}", f"{r['connect']:.2f}", f"{r['first']:.2f}", f"{r['rt']:.2f}",
+                     f"{r['headroom']:.1f}"] for k, r in rows), align="-rrrrrrr"), end="")
 
 
 if __name__ == "__main__":

@@ -1,20 +1,25 @@
 """DVC stage ``articulate@<scene>``: ``decompose/`` + capture -> ``out/<scene>/articulate/``
-(``parts.json`` in the ``drawer.parts/1`` format of DESIGN §5, ``decisions.json``: why each
+(``parts.json`` in the ``drawer.parts/1`` format of docs/formats.md, ``decisions.json``: why each
 segment got its type, ``metrics.json``).
 
     python -m stages.articulate scene=kitchen_small
     python -m stages.articulate -cn dvc_stage scene=kitchen_small
-    python -m stages.articulate scene=kitchen_small articulate.use_labels=false   # geometry only
+    python -m stages.articulate scene=kitchen_small articulate.types.use_labels=false   # no label votes
+    python -m stages.articulate scene=kitchen_small articulate.types.weights=prior     # the hand-set weights
 """
+
+from pathlib import Path
 
 import hydra
 from omegaconf import DictConfig
 
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.pipeline import run_articulate
+from drawer_lib.articulation.weights import resolve_weights
 from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
+from drawer_lib.paths import BenchPaths
 from drawer_lib.runner import main_guard, stage_run
 
 
@@ -25,8 +30,9 @@ def main(cfg: DictConfig) -> None:
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture, check_files=False)
+    weights = resolve_weights(ac.types, BenchPaths(Path(cfg.paths.bench)).weights)
     with stage_run("articulate", dst.stage_dir("articulate"), seed=cfg.seed) as run:
-        run.metrics.update(run_articulate(ac, cap, src.decompose, run))
+        run.metrics.update(run_articulate(ac, cap, src.decompose, run, weights))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""DVC stage ``capture@<scene>``: a scene config -> ``out/<scene>/capture/`` (DESIGN §4).
+"""DVC stage ``capture@<scene>``: a scene config -> ``out/<scene>/capture/`` (docs/formats.md#capture).
 
     python -m stages.capture scene=kitchen_small                    # interactive, conf/
     python -m stages.capture -cn dvc_stage scene=kitchen_small      # as DVC runs it: params.yaml

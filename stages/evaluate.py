@@ -1,6 +1,6 @@
 """DVC stage ``evaluate@<scene>``: predictions vs the capture's ground truth -> ``out/<scene>/evaluate/``
 (``metrics.json``: articulation precision, recall, EA-score and the motion EMD of the simulated
-twin (DESIGN §6); ``matches.json``: which prediction matched which GT part, per-part EMD). Scenes without GT record the skip and its reason.
+twin (docs/formats.md#metric-definitions); ``matches.json``: which prediction matched which GT part, per-part EMD). Scenes without GT record the skip and its reason.
 
     python -m stages.evaluate -cn dvc_stage scene=kitchen_small
 """

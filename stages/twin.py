@@ -1,5 +1,5 @@
 """DVC stage ``twin@<scene>``: ``complete/`` + ``parts.json`` -> ``out/<scene>/twin/`` in the
-format of DESIGN §5b (``scene.xml``, ``urdf/scene.urdf``, ``scene.usda``, ``gaussians/``,
+format of docs/formats.md (``scene.xml``, ``urdf/scene.urdf``, ``scene.usda``, ``gaussians/``,
 ``renders/``, ``twin.json``), checked in MuJoCo before it is written; on synthetic scenes the
 opened-state scores against the scene's own model.
 

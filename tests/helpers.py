@@ -35,14 +35,15 @@ def render_capture(scene: SceneConfig, cap: CaptureConfig, out: Path, name: str 
 
 
 def run_stage(module: str, tmp: Path, *args: str):
-    """``python -m stages.<module> scene=kitchen_tiny`` with outputs and reports under ``tmp``."""
+    """``python -m stages.<module> scene=kitchen_tiny`` with outputs, reports and the benchmark
+    under ``tmp``."""
     import os
     import subprocess
     import sys
 
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", f"stages.{module}", "scene=kitchen_tiny", f"paths.out={tmp / 'out'}",
-                           f"paths.reports={tmp / 'reports'}", *args], cwd=ROOT, env=env,
+                           f"paths.reports={tmp / 'reports'}", f"paths.bench={tmp / 'bench'}", *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
 
 

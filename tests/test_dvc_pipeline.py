@@ -2,6 +2,7 @@
 capture of a tiny scene, a second `dvc repro` does nothing, and stages compute from params.yaml
 (so `dvc exp run -S` changes what they compute)."""
 
+import html
 import json
 import os
 import shutil
@@ -13,12 +14,21 @@ import pytest
 import yaml
 from helpers import ROOT
 
-from drawer_lib.paths import LAYOUT, ScenePaths, capture_name
+from drawer_lib.articulation.weights import read_weights
+from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths, capture_name
 
 pytestmark = pytest.mark.dvc
 
-IGNORE = shutil.ignore_patterns(".venv", "out", "multirun", "outputs", ".git", "cache", "tmp", "__pycache__",
-                                ".pytest_cache", ".hypothesis", "*.egg-info", "dvc.lock")
+_IGNORE_ANYWHERE = shutil.ignore_patterns(".venv", "multirun", "outputs", ".git", "cache", "tmp", "__pycache__",
+                                          ".pytest_cache", ".hypothesis", "*.egg-info", "dvc.lock")
+_OUTPUT_ROOTS = {"out", "bench", "reports", "logs"}  # generated data, at the project root only (conf/bench is config)
+
+
+def IGNORE(folder: str, names: list[str]) -> set[str]:
+    ignored = set(_IGNORE_ANYWHERE(folder, names))
+    if Path(folder).resolve() == ROOT.resolve():
+        ignored |= _OUTPUT_ROOTS & set(names)
+    return ignored
 
 
 # the whole DAG on the tiny scene, with the geometry stages shrunk to seconds
@@ -32,7 +42,9 @@ FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.
                "twin.check=false", "twin.renders.max_views=1", "twin.renders.lpips=false",
                # the stability study on the twin's parts at two timesteps; the report without the extremes' pytest run
                "stability.extremes=false", "stability.timesteps=[0.001,0.002]", "stability.integrators=[implicitfast,euler]",
-               "stability.rtf_time=0.2", "report.extremes=false"]
+               "stability.rtf_time=0.2", "report.extremes=false",
+               # the benchmark: kitchen 0 of each split, at kitchen_tiny's frames
+               "bench.kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}"]
 
 
 def make_repo(tmp_path_factory, params: list[str], prepare=None):
@@ -113,19 +125,32 @@ def test_repro_builds_capture_then_does_nothing(repo):
     assert choice["integrator"] in ("implicitfast", "euler") and choice["timestep"] in (0.001, 0.002)
     assert json.loads(sp.metrics("simulate").read_text())["timestep"] == choice["timestep"]  # simulate ran with it
     page = (d / "reports" / LAYOUT["report"]["index"]).read_text()
-    assert '<section id="stability">' in page and "kitchen_tiny" in page
+    # the report's stability section shows this run's choice and heat map (the section itself is
+    # always there; without the stage's outputs it says "the stability stage has not run")
+    section = page.split('<section id="stability">', 1)[1].split("</section>", 1)[0]
+    chosen = f"kitchen_tiny: chosen {choice['integrator']} at {choice['timestep']:g} s ({choice['source']})"
+    assert html.escape(chosen) in section and 'alt="kitchen_tiny: stability heat map"' in section, section[:2000]
     assert "report.extremes = false" in (d / "reports" / LAYOUT["report"]["summary"]).read_text()
     # every file a stage writes is a declared output: an undeclared one is not pushed to a remote,
     # and a clone that pulls sees out/ differ and reruns every stage that depends on it
     lock = yaml.safe_load((d / "dvc.lock").read_text())["stages"]
     outs = {o["path"].rstrip("/") for st in lock.values() for o in st.get("outs", [])}
-    stray = [p.relative_to(d).as_posix() for p in (d / "out").rglob("*") if p.is_file()
+    stray = [p.relative_to(d).as_posix() for root in ("out", "bench") for p in (d / root).rglob("*") if p.is_file()
              and not any(p.relative_to(d).as_posix() == o or p.relative_to(d).as_posix().startswith(o + "/")
                          for o in outs)]
     assert not stray, stray
     abl = json.loads((d / "reports" / "ablation" / LAYOUT["report"]["table_json"]).read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
     assert (sp.appearance_dir("movable_gs_ste") / LAYOUT["appearance"]["model"] / "gaussians.ply").exists()
+    # the benchmark: its kitchens, the fitted weights articulate read, both splits' tables
+    bench = BenchPaths(d / "bench")
+    assert read_weights(bench.weights) and json.loads((bench.fit / LAYOUT["metrics"]).read_text())["n_kitchens"] == 1
+    assert any(dep["path"] == "bench/fit/weights.json" for dep in lock["articulate@kitchen_tiny"]["deps"])
+    for split in ("train", "test"):
+        assert bench.kitchen(split, 0).parts.is_file()
+        m = json.loads((bench.eval(split) / LAYOUT["metrics"]).read_text())
+        assert m["fitted_n_kitchens"] == 1 and m["fitted_n_gt"] > 0
+        assert (bench.eval(split) / LAYOUT["report"]["table"]).read_text().startswith(f"## The {split} split")
 
 
 def test_stage_reads_params_yaml(repo):

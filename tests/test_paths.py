@@ -41,10 +41,10 @@ def test_every_entry_is_relative_and_under_its_stage():
 
 def test_dvc_yaml_reads_the_layout_instead_of_spelling_names():
     text = (ROOT / "dvc.yaml").read_text()
-    assert "drawer_lib/paths.py:LAYOUT" in text
+    assert "drawer_lib/paths.py:LAYOUT" in text and "drawer_lib/paths.py:BENCH" in text
     stages = yaml.safe_load(text)["stages"]
     for name, st in stages.items():
         st = st.get("do", st)
-        for o in st.get("outs", []) + st.get("metrics", []):
+        for o in st.get("outs", []) + st.get("metrics", []) + st.get("plots", []):
             o = o if isinstance(o, str) else next(iter(o))
-            assert "${LAYOUT." in o, (name, o)
+            assert "${LAYOUT." in o or "${BENCH." in o, (name, o)

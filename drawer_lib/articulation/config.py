@@ -3,6 +3,7 @@ changes a result, grouped by the step that uses it. Lengths in metres, angles in
 
 from dataclasses import dataclass, field
 
+from drawer_lib.articulation.vocab import check_weights, prior_weights
 from drawer_lib.errors import ConfigError
 
 
@@ -94,53 +95,43 @@ class HandlesConfig:
             raise ConfigError("articulate.handles: min_hits, geo_min_points and mask_min_points must be >= 1")
 
 
-def _default_weights() -> dict[str, dict[str, float]]:
-    """Hand-set weights that reproduce the handle rule on clear cases; the shipped config
-    (conf/articulate/default.yaml) holds the ones fitted on the train split."""
-    return {
-        "drawer": {"handle": 1.0, "h_top": 1.0, "h_center_u": 1.0, "h_horizontal": 0.5, "lab_drawer": 2.0},
-        "door": {"handle": 1.0, "h_free": 2.5, "h_vertical": 0.5, "lab_door": 1.0},
-        "flap_top": {"handle": 1.0, "h_bottom": 2.0, "h_center_u": 0.5},
-        "flap_bottom": {"handle": 1.0, "h_top": 1.0, "lab_door": 1.5},
-        "sliding": {"partner": 5.0},
-        "fixed": {"bias": 0.5},
-    }
-
-
 @dataclass(frozen=True)
 class TypesConfig:
-    """The type decision. ``rule: score`` (default): a linear score per hypothesis over the
-    front's evidence (:mod:`drawer_lib.articulation.scoring`), ``weights`` {hypothesis:
-    {feature: weight}} fitted on the train split by scripts/fit_decisions.py. ``rule: handle``:
-    the earlier rule on the handle alone (:func:`~drawer_lib.articulation.joints.decide`): a
-    handle within ``edge_frac`` of a side edge makes a door hinged on the far side (a horizontal
-    one only within ``edge_frac`` / 2), near the bottom a flap hinged at the top, near the top a
-    drawer (or, when ``use_labels`` and the majority of label votes is in ``door_labels`` rather
-    than ``drawer_labels``, a flap hinged at the bottom), central a drawer; a sliding partner
-    makes a sliding door, no handle a fixed panel. ``edge_frac`` also bounds the stacked-pull
-    check of the handles. ``use_labels``: label votes are evidence (false: ignored). Either
-    rule: a front without a handle that detections matched in fewer than ``min_support``
-    views is a fixed panel (a front seen in many views, in a carcass, is rarely fixed even when
-    its handle is too small to find); a front with a handle or enough support is typed."""
+    """The type decision (:mod:`drawer_lib.articulation.decide`). ``rule: score`` (default): a
+    linear score per hypothesis over the front's evidence (:mod:`drawer_lib.articulation.scoring`)
+    with the ``weights``: ``fitted`` (what the ``fit_decisions`` stage fitted on the benchmark's
+    train split, a file of the pipeline) or ``prior`` (the hand-set {hypothesis: {feature:
+    weight}} below, which the fit also starts from). ``rule: handle``: the handle rule alone
+    (:func:`~drawer_lib.articulation.decide.decide_by_handle`): a handle within ``edge_frac`` of
+    a side edge makes a door hinged on the far side (a horizontal one only within ``edge_frac`` /
+    2), near the bottom a flap hinged at the top, near the top a drawer (or, when ``use_labels``
+    and the majority of label votes is in ``door_labels`` rather than ``drawer_labels``, a flap
+    hinged at the bottom), central a drawer; a sliding partner makes a sliding door, no handle a
+    fixed panel. ``edge_frac`` also bounds the stacked-pull check of the handles. ``use_labels``:
+    label votes are evidence (false: ignored). Either rule: a front without a handle that
+    detections matched in fewer than ``min_support`` views is a fixed panel (a front seen in many
+    views, in a carcass, is rarely fixed even when its handle is too small to find); a front with
+    a handle or enough support is typed."""
 
     rule: str = "score"
+    weights: str = "fitted"
+    prior: dict[str, dict[str, float]] = field(default_factory=prior_weights)
     min_support: int = 5
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
     drawer_labels: list[str] = field(default_factory=lambda: ["drawer"])
-    weights: dict[str, dict[str, float]] = field(default_factory=_default_weights)
 
     def __post_init__(self):
-        from drawer_lib.articulation.scoring import check_weights
-
         if self.rule not in ("score", "handle"):
             raise ConfigError(f"articulate.types.rule = {self.rule!r} must be score or handle")
+        if self.weights not in ("fitted", "prior"):
+            raise ConfigError(f"articulate.types.weights = {self.weights!r} must be fitted or prior")
         if not 0 < self.edge_frac < 0.5:
             raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if self.min_support < 0:
             raise ConfigError(f"articulate.types.min_support = {self.min_support} must be >= 0")
-        check_weights(self.weights)
+        check_weights(self.prior, "articulate.types.prior")
 
 
 @dataclass(frozen=True)
@@ -190,7 +181,7 @@ class JointsConfig:
 
 @dataclass(frozen=True)
 class ArticulateConfig:
-    """Segments -> ``parts.json`` (DESIGN §5). ``estimator``: ``geometric`` (built in: plane,
+    """Segments -> ``parts.json`` (``drawer.parts/1``, docs/formats.md). ``estimator``: ``geometric`` (built in: plane,
     rectangle, handle and layout cues) or a learned one (``3doi``, ``vlm``: named slots that need
     weights or services not available here; register one with
     :func:`drawer_lib.articulation.estimators.register_estimator`)."""

@@ -2,28 +2,18 @@
 cover), its assignment to fronts, the choice of each front's handle, and the handle's place
 and shape in the front's unit square. Lengths in metres."""
 
-from dataclasses import dataclass
-
 import numpy as np
 from jaxtyping import Float
 
 from drawer_lib.articulation.config import HandlesConfig
 from drawer_lib.articulation.fronts import abutting_edges
+from drawer_lib.articulation.vocab import Handle
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front
 from drawer_lib.perception.views import connected_components
 
 Candidates = list[list[tuple[np.ndarray, float]]]  # per front: [(points [M, 3], weight)], heaviest first
-
-
-@dataclass
-class Handle:
-    a_u: float  # handle centroid in the front's unit square, left -> right
-    a_v: float  # bottom -> top
-    orientation: str  # horizontal | vertical | round
-    n_points: int
-    source: str  # geometry (mesh protrusions) | masks (handle detections)
 
 
 def handle_clusters(points: Float[np.ndarray, "N 3"], radius: float, min_points: int) -> list[np.ndarray]:

@@ -1,9 +1,10 @@
-"""The built-in estimator: segments + mesh -> parts (DESIGN §5), without learned models.
+"""The built-in estimator: segments + mesh -> parts (``drawer.parts/1``), without learned models.
 
 Per planar, vertical segment a front rectangle (:mod:`~drawer_lib.articulation.fronts`), then
 for all fronts together their handles (:mod:`~drawer_lib.articulation.handles`), sliding pairs,
-the type of each and its joint (:mod:`~drawer_lib.articulation.joints`). Non-planar segments
-become ``rigid`` parts (centre and axis-aligned bounds).
+the type of each (:mod:`~drawer_lib.articulation.decide`) and its joint
+(:mod:`~drawer_lib.articulation.joints`). Non-planar segments become ``rigid`` parts (centre and
+axis-aligned bounds).
 """
 
 from collections.abc import Callable
@@ -11,12 +12,14 @@ from collections.abc import Callable
 import numpy as np
 import trimesh
 
-from drawer_lib.articulation.config import ArticulateConfig, TypesConfig
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.decide import decide_by_handle, decide_by_score
 from drawer_lib.articulation.fronts import abutting_edges, fit_front, refine_with_masks, sample_points, share_edges
 from drawer_lib.articulation.handles import front_handles
-from drawer_lib.articulation.joints import Decision, carcass_depth, decide, make_part, slide_side, sliding_partners
-from drawer_lib.articulation.scoring import (HYPOTHESES, Evidence, door_features, features, rail_extent, rail_run,
-                                             score)
+from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
+from drawer_lib.articulation.probes import carcass_depth, rail_extent, rail_run
+from drawer_lib.articulation.scoring import Evidence
+from drawer_lib.articulation.vocab import Decision
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front, Part
 from drawer_lib.perception.decompose import Segment
@@ -65,12 +68,17 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
 
 def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,
                 handle_hits: np.ndarray | None = None, masks_of: Callable | None = None,
-                face_views: np.ndarray | None = None) -> tuple[list[Part], list[dict]]:
+                face_views: np.ndarray | None = None, weights: dict[str, dict[str, float]] | None = None
+                ) -> tuple[list[Part], list[dict]]:
     """(parts, per-segment decisions for the report). ``cam_centers`` [C, 3]: the train cameras
     (a front's normal points toward them); ``handle_hits`` [F]: in how many views a "handle"
     mask covers each face; ``face_views`` [F]: in how many views each face is visible (needed by
     ``handles.evidence: view_rate``); ``masks_of(segment)`` -> [(bool mask [H, W], Camera)]: the
-    2D masks a segment matched (they refine its rectangle); None uses the mesh alone."""
+    2D masks a segment matched (they refine its rectangle); None uses the mesh alone;
+    ``weights``: the score rule's {hypothesis: {feature: weight}} (None: ``cfg.types.prior``).
+    A front's features do not depend on the weights."""
+    if weights is None:
+        weights = cfg.types.prior
     parts: list[Part] = []
     report: list[dict] = []
     fits = segment_fronts(mesh, segs, cam_centers, cfg, masks_of, parts, report)
@@ -93,14 +101,15 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         if h is None and s.support < cfg.types.min_support:
             dec = Decision("fixed", reason=f"no handle, matched in {s.support} < {cfg.types.min_support} views")
         elif cfg.types.rule == "score":
-            ev = Evidence(h, fr.size, float(fr.center[2]) - floor_z, neighbours[k][0], neighbours[k][1],
-                          neighbours[k][2], k in partner, rail_extent(fr, mesh_pts, pt_normal), carcass, s.labels,
-                          s.support)
-            dec, terms = decide_by_score(ev, cfg.types)
+            ev = Evidence(handle=h, size=fr.size, z_mid=float(fr.center[2]) - floor_z, stacked=neighbours[k][0],
+                          beside_left=neighbours[k][1], beside_right=neighbours[k][2], partner=k in partner,
+                          rail=rail_extent(fr, mesh_pts, pt_normal), carcass=carcass, labels=s.labels,
+                          support=s.support)
+            dec, terms = decide_by_score(ev, cfg.types, weights)
         elif k in partner:
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
-            dec = decide(h, s.labels, cfg.types)
+            dec = decide_by_handle(h, s.labels, cfg.types)
         reason = dec.reason + "".join(f"; the pull it shared with segment {fits[hi][0].id} went there"
                                       for lo, hi in gave_up if lo == k)
         row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason,
@@ -139,17 +148,3 @@ def front_neighbours(fronts: list[Front], max_gap: float, plane_tol: float) -> l
                     right = True
         out.append((stacked, left, right))
     return out
-
-
-def decide_by_score(ev: Evidence, cfg: TypesConfig) -> tuple[Decision, dict]:
-    """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
-    for ``decisions.json`` (features, door features per hinge side, scores)."""
-    common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels)
-    door = {side: door_features(ev, side) for side in ("left", "right")}
-    scores = score(common, door, cfg.weights)
-    best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
-    runner_up = max((v for k, v in scores.items() if k != best), default=float("-inf"))
-    fam, _, hinge = best.partition("_")
-    dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up:.2f})")
-    r4 = lambda d: {k: round(float(v), 4) for k, v in d.items()}  # noqa: E731
-    return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()}, "scores": r4(scores)}

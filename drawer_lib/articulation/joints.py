@@ -1,57 +1,17 @@
-"""Joints: the type decision from the handle (DRAWER's rule on the 3DOI affordance peak,
-reference §3.10(c), with the handle in place of the peak), the hinge axis, the drawer's travel
-from the carcass depth, and sliding pairs. Lengths in metres, angles in radians in parts.
-
-| evidence | type |
-|---|---|
-| handle near the left / right edge (a_u < f or > 1 - f; a horizontal one within f / 2) | door hinged on the far side |
-| handle near the bottom edge | flap hinged at the top |
-| handle near the top edge | drawer, or a flap hinged at the bottom when the labels say door |
-| handle central | drawer |
-| a neighbouring front of the same height on another track (a depth step) | sliding door (toward it) |
-| no handle | not articulated (a fixed panel) |
+"""Joints of typed fronts: the hinge axis of a door or flap, a drawer's travel from the carcass
+depth, sliding pairs and the direction a sliding door without a partner opens. Lengths in
+metres, angles in radians in parts.
 
 Axes: revolute on the hinge edge, direction = (hinge -> free side) x outward normal, so a
 positive angle opens outward; prismatic along the outward normal (drawer) or along u (sliding).
 """
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from drawer_lib.articulation.config import JointsConfig, TypesConfig
-from drawer_lib.articulation.handles import Handle
+from drawer_lib.articulation.config import JointsConfig
+from drawer_lib.articulation.probes import local_step
+from drawer_lib.articulation.vocab import Decision, Handle
 from drawer_lib.io.parts import Axis, Front, Part
-
-
-@dataclass
-class Decision:
-    family: str  # drawer | door | flap | sliding | fixed
-    hinge: str | None = None  # left | right | top | bottom (revolute)
-    reason: str = ""
-
-
-def decide(h: Handle | None, labels: dict, cfg: TypesConfig) -> Decision:
-    """The type from the handle position (and, for the one ambiguous case, the label votes)."""
-    if h is None:
-        return Decision("fixed", reason="no handle")
-    f = cfg.edge_frac
-    side = h.a_u < f or h.a_u > 1 - f
-    if side and (h.orientation != "horizontal" or h.a_u < f / 2 or h.a_u > 1 - f / 2):
-        # doors carry their handle at the free side (a horizontal bar only right at the edge)
-        return Decision("door", "right" if h.a_u < 0.5 else "left", "handle near a side edge")
-    if h.a_v < f:
-        return Decision("flap", "top", "handle near the bottom edge")
-    if h.a_v > 1 - f:
-        if cfg.use_labels:
-            door_votes = sum(v for k, v in labels.items() if k in cfg.door_labels)
-            drawer_votes = sum(v for k, v in labels.items() if k in cfg.drawer_labels)
-            if door_votes > drawer_votes:
-                return Decision("flap", "bottom", "handle near the top edge; labels say door")
-        return Decision("drawer", reason="handle near the top edge")
-    if side:  # a horizontal bar near a side, halfway up: still a side-hinged door
-        return Decision("door", "right" if h.a_u < 0.5 else "left", "handle near a side edge")
-    return Decision("drawer", reason="central handle")
 
 
 def hinge_axis(front: Front, hinge: str) -> Axis:
@@ -64,37 +24,6 @@ def hinge_axis(front: Front, hinge: str) -> Axis:
     to_free = -edge / np.linalg.norm(edge)
     d = np.cross(to_free, n)
     return Axis(tuple((c + edge).tolist()), tuple((d / np.linalg.norm(d)).tolist()))
-
-
-def carcass_depth(front: Front, mesh_points: np.ndarray, mesh_normals: np.ndarray, cfg: JointsConfig) -> float | None:
-    """Depth of the cabinet behind a front as the mesh shows it: a low percentile of the
-    distances of the points facing the same way as the front (a wall or back panel) behind it,
-    within the front's rectangle (its u- and v-range: the fronts of the wall cabinets above a
-    base cabinet face the same way but are not behind it); None when the mesh shows too few."""
-    c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
-    rel = mesh_points - c
-    d = -(rel @ n)
-    sel = ((d > cfg.carcass_min_depth) & (d < cfg.carcass_max_depth) & (np.abs(rel @ u) < front.size[0] / 2)
-           & (np.abs(rel @ front.v) < front.size[1] / 2) & ((mesh_normals @ n) > cfg.carcass_normal_cos))
-    if sel.sum() < cfg.carcass_min_points:
-        return None
-    return float(np.percentile(d[sel], cfg.carcass_percentile))
-
-
-def local_step(fa: Front, fb: Front, pa: np.ndarray, pb: np.ndarray, band: float) -> float:
-    """How far front b lies behind front a (m), measured on the segments' own points within
-    ``band`` of the line between them along the mean normal — not from the two centres, whose
-    lateral distance times a degree of plane-fit tilt would fake a step."""
-    n = np.asarray(fa.normal) + np.asarray(fb.normal)
-    n /= np.linalg.norm(n)
-    u = np.asarray(fa.u)
-    ca, cb = np.asarray(fa.center), np.asarray(fb.center)
-    mid = ca + u * np.sign((cb - ca) @ u) * fa.size[0] / 2  # a's edge facing b
-    near_a = pa[np.abs((pa - mid) @ u) < band]
-    near_b = pb[np.abs((pb - mid) @ u) < band]
-    if len(near_a) < 3 or len(near_b) < 3:
-        return float((ca - cb) @ n)
-    return float(np.median(near_a @ n) - np.median(near_b @ n))
 
 
 def sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: JointsConfig,

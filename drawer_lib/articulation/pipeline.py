@@ -1,5 +1,5 @@
 """What the ``articulate`` stage does: the decompose outputs + capture -> ``parts.json``
-(DESIGN §5) and ``decisions.json`` (why each segment got its type)."""
+(``drawer.parts/1``, docs/formats.md) and ``decisions.json`` (why each segment got its type)."""
 
 from pathlib import Path
 
@@ -36,8 +36,11 @@ def mask_source(cap: Capture):
     return masks_of
 
 
-def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: StageRun) -> dict:
-    """Infer the parts of the segments in ``seg_dir`` (a decompose output) and write them."""
+def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: StageRun,
+                   weights: dict[str, dict[str, float]] | None = None) -> dict:
+    """Infer the parts of the segments in ``seg_dir`` (a decompose output) and write them;
+    ``weights``: the score rule's (:func:`drawer_lib.articulation.weights.resolve_weights`;
+    None: ``cfg.types.prior``)."""
     est = get_estimator(cfg.estimator)
     mesh, segs, hits, face_views = load_segments(seg_dir)
     if cfg.handles.evidence == "view_rate" and face_views is None:
@@ -45,7 +48,8 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
                          "view_rate needs (written by an older decompose: re-run it)")
     centers = np.stack([cap.frames[i].c2w[:3, 3] for i in cap.train])
     masks_of = mask_source(cap) if cap.has("detections_path") else None
-    parts, report = est(mesh, segs, centers, cfg, handle_hits=hits, masks_of=masks_of, face_views=face_views)
+    parts, report = est(mesh, segs, centers, cfg, handle_hits=hits, masks_of=masks_of, face_views=face_views,
+                        weights=weights)
     pf = PartsFile(tuple(parts))
     write_parts(run.out("parts"), pf)
     write_json(run.out("decisions"), {"estimator": cfg.estimator, "segments": report})

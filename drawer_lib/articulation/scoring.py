@@ -9,9 +9,9 @@ and detection support; :func:`features`), and each hypothesis a linear score
 with ``door`` scored once per hinge side on features expressed relative to that side (the
 handle's closeness to the free and to the hinge edge, a neighbour at either edge), so left and
 right doors share one weight vector and mirror exactly. The front takes the hypothesis of
-highest score (a multinomial logistic model: the weights are fitted on the train split by
-``scripts/fit_decisions.py`` and live in ``conf/articulate/default.yaml``; ``decisions.json``
-records every feature and score). Nothing here encodes a size of our generator: sizes enter
+highest score (a multinomial logistic model: the ``fit_decisions`` stage fits the weights on
+the benchmark's train split, :mod:`drawer_lib.bench.fit`; ``decisions.json`` records every
+feature and score; the names: :mod:`drawer_lib.articulation.vocab`). Nothing here encodes a size of our generator: sizes enter
 only as features whose weights are fitted.
 
 | feature | meaning (all 0 without a handle for the handle terms) |
@@ -29,7 +29,7 @@ only as features whose weights are fitted.
 | stacked | coplanar fronts sharing its top or bottom edge (0, 0.5, 1 for 0, 1, 2+) |
 | beside | a coplanar front shares its left or right edge |
 | partner | a neighbouring front of the same height on another track (a sliding pair) |
-| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) spans half of it there (:func:`rail_extent`) |
+| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) spans half of it there (:func:`~drawer_lib.articulation.probes.rail_extent`) |
 | carcass | depth of the cabinet the mesh shows behind it (m, 0 when none) |
 | lab_drawer, lab_door | the fraction of the segment's label votes in drawer_labels / door_labels |
 | support | log(1 + views whose detections matched the segment) / log(50) |
@@ -41,22 +41,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drawer_lib.articulation.handles import Handle
-from drawer_lib.errors import ConfigError
+from drawer_lib.articulation.vocab import COMMON, DOOR_ONLY, HYPOTHESES, Handle
 
-HYPOTHESES = ("drawer", "door_left", "door_right", "flap_top", "flap_bottom", "sliding", "fixed")
-WEIGHT_SETS = ("drawer", "door", "flap_top", "flap_bottom", "sliding", "fixed")
-COMMON = ("bias", "handle", "h_top", "h_bottom", "h_side", "h_corner", "h_center_u", "h_vertical", "h_horizontal",
-          "h_round",
-          "aspect", "width", "height", "z_mid", "stacked", "beside", "partner", "rail", "carcass", "lab_drawer",
-          "lab_door", "support")
-DOOR_ONLY = ("h_free", "h_hinge", "beside_free", "beside_hinge")
 RAMP = 0.35  # handle closeness falls from 1 at an edge to 0 at this fraction of the front away
 
 
-@dataclass
+@dataclass(frozen=True, kw_only=True)
 class Evidence:
-    """What is known about one front besides its rectangle."""
+    """What is known about one front besides its rectangle (built by keyword)."""
 
     handle: Handle | None
     size: tuple[float, float]  # (width, height) m
@@ -115,74 +107,6 @@ def door_features(ev: Evidence, hinge: str) -> dict[str, float]:
     f["beside_hinge"] = float(ev.beside_left if hinge == "left" else ev.beside_right)
     f["beside_free"] = float(ev.beside_right if hinge == "left" else ev.beside_left)
     return f
-
-
-def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> float:
-    """The track's length along the front in units of its width (0: none; :func:`rail_run`)."""
-    run = rail_run(front, points, normals, band)
-    return 0.0 if run is None else float((run[1] - run[0]) / max(front.size[0], 1e-6))
-
-
-def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> tuple[float, float] | None:
-    """How far a track runs along the front's top or bottom edge: the unbroken run (2 cm bins
-    along u, through the front's middle, at least 90 % of its width) of the mesh ``points``
-    [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7 with the front's normal), lie
-    within ``band`` beyond that edge and 0.4 to 4 cm in front of the front's plane (proud of it:
-    coplanar neighbours are not a track), divided by the front's width; the larger of the two
-    edges.
-    An edge with a horizontal surface reaching more than 10 cm behind the plane there across
-    half the front's width or more (a counter top, a shelf) has no track. Returns the longer edge's run as (lo, hi) along u from
-    the front's centre (m), or None when no edge has one (fewer than 20 points qualify, or the
-    run is broken within the front's width)."""
-    c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
-    v = front.v
-    rel = points - c
-    pu, pv, pn = rel @ u, rel @ v, rel @ n
-    hw, hh = front.size[0] / 2, front.size[1] / 2
-    near_u = np.abs(pu) < 2.0 * hw
-    facing = normals @ n > 0.7
-    flat = np.abs(normals[:, 2]) > 0.7
-    best: tuple[float, float] | None = None
-    for sgn in (1.0, -1.0):
-        beyond = sgn * pv - hh
-        in_band = near_u & (beyond > 0.0) & (beyond < band)
-        deep = in_band & flat & (pn < -0.1)
-        if deep.sum() >= 20 and np.ptp(pu[deep]) > hw:  # a counter top or a shelf across it, not a track
-            continue
-        sel = in_band & facing & (pn > 0.004) & (pn < 0.04)
-        if sel.sum() < 20:
-            continue
-        # the unbroken run of 2 cm bins along u holding such points, through the front's middle:
-        # a track spans the front, handles and neighbours' pulls leave gaps
-        bins = np.floor((pu[sel] + 2.0 * hw) / 0.02).astype(np.int64)
-        occ = np.zeros(int(np.ceil(4.0 * hw / 0.02)) + 1, bool)
-        occ[np.clip(bins, 0, len(occ) - 1)] = True
-        occ[1:-1] |= occ[:-2] & occ[2:]  # a single empty bin between two full ones is sampling, not a gap
-        mid = int((2.0 * hw) / 0.02)
-        if not occ[mid]:
-            continue
-        lo = mid - int(np.argmin(occ[mid::-1])) + 1 if not occ[: mid + 1].all() else 0
-        hi = mid + int(np.argmin(occ[mid:])) if not occ[mid:].all() else len(occ)
-        run = (lo * 0.02 - 2.0 * hw, hi * 0.02 - 2.0 * hw)
-        if run[1] - run[0] >= 0.9 * 2 * hw and (best is None or run[1] - run[0] > best[1] - best[0]):
-            best = run
-    return best
-
-
-def check_weights(weights: dict[str, dict[str, float]]) -> None:
-    """Every weight set named, every feature known, every weight finite."""
-    for k, ws in weights.items():
-        if k not in WEIGHT_SETS:
-            raise ConfigError(f"articulate.types.weights: unknown hypothesis {k!r} (known: {WEIGHT_SETS})")
-        known = COMMON + (DOOR_ONLY if k == "door" else ())
-        for f, v in ws.items():
-            if f not in known:
-                raise ConfigError(f"articulate.types.weights.{k}: unknown feature {f!r} (known: {known})")
-            if not np.isfinite(v):
-                raise ConfigError(f"articulate.types.weights.{k}.{f} = {v} is not finite")
-    missing = [k for k in WEIGHT_SETS if k not in weights]
-    if missing:
-        raise ConfigError(f"articulate.types.weights: missing hypotheses {missing}")
 
 
 def score(common: dict[str, float], door: dict[str, dict[str, float]], weights: dict[str, dict[str, float]]

@@ -21,7 +21,7 @@ class VideoSource:
 
 @dataclass(frozen=True)
 class DirSource:
-    """An existing capture folder (DESIGN §4), e.g. from nerfstudio's ns-process-data.
+    """An existing capture folder (docs/formats.md#capture), e.g. from nerfstudio's ns-process-data.
     ``metric_scale`` / ``gravity`` state whether its world frame is in metres / +z up."""
 
     path: str = ""

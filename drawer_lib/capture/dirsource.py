@@ -1,4 +1,4 @@
-"""The ``dir`` source: validate an existing capture folder (DESIGN §4, e.g. nerfstudio's
+"""The ``dir`` source: validate an existing capture folder (docs/formats.md#capture, e.g. nerfstudio's
 ``ns-process-data`` output) and write it in the standard layout, undistorted.
 
 A capture with lens distortion (``camera_model: OPENCV`` with k1, k2, p1, p2, as COLMAP and

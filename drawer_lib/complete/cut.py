@@ -1,13 +1,15 @@
 """Cut the articulated parts out of the scene mesh: each part's body (its front panel and
 handle) and the static remainder with a cavity where the part's solid sweeps.
 
-Conventions: world frame, metres, +z up (DESIGN §4); a part's front frame has axes (u, v, n) =
-(``front.u``, ``front.normal`` x ``front.u``, ``front.normal``) about the centre of its outer
-face; q in rad (revolute) or m (prismatic), q = 0 closed, positive opens (DESIGN §5).
+Conventions: world frame, metres, +z up (docs/formats.md#conventions); a part's front frame
+has axes (u, v, n) = (``front.u``, ``front.normal`` x ``front.u``, ``front.normal``) about the
+centre of its outer face; q in rad (revolute) or m (prismatic), q = 0 closed, positive opens
+(as in ``drawer.parts/1``).
 
-DRAWER (reference §4.1, §5.5) removes from the static mesh only the vertices inside each door's
-thin slab; here every static face the part's solid passes through while it opens is removed
-too, so an opened drawer or door never shows the old surface inside it. The solid of a door,
+DRAWER's official code (``isaac_sim/compose_usd.py``, ``splat/scripts/splat_merge.py``)
+removes from the static mesh only the vertices inside each door's thin slab; here every static
+face the part's solid passes through while it opens is removed too, so an opened drawer or door
+never shows the old surface inside it. The solid of a door,
 flap or sliding panel is its front rectangle times the panel thickness; that of a drawer the
 front rectangle times the drawer box's depth. The swept volume is the union of that oriented
 box over q sampled on its range; each sampled box is grown by ``sweep_tol`` and the samples are
@@ -25,7 +27,7 @@ import trimesh
 from jaxtyping import Bool, Float, Int
 
 from drawer_lib.articulation.config import JointsConfig
-from drawer_lib.articulation.joints import carcass_depth
+from drawer_lib.articulation.probes import carcass_depth
 from drawer_lib.complete.config import CutConfig
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.joints import joint_transform
@@ -184,7 +186,7 @@ def part_depth(part: Part, cfg: CutConfig, depth: float | None = None,
     ``panel_thickness`` ("panel"). A drawer: ``depth`` when given ("given"); else the carcass
     depth minus ``drawer_back_clearance`` (at least ``drawer_min_depth``), from the part's
     ``carcass_depth`` ("carcass") or measured on ``mesh_points`` [P, 3] / ``mesh_normals``
-    [P, 3] with :func:`~drawer_lib.articulation.joints.carcass_depth` ("measured"); else
+    [P, 3] with :func:`~drawer_lib.articulation.probes.carcass_depth` ("measured"); else
     ``drawer_default_depth`` ("default")."""
     if not is_drawer(part, cfg):
         return cfg.panel_thickness, "panel"

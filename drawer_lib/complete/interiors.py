@@ -25,7 +25,7 @@ Evidence (:func:`measure_evidence`): the wall behind (the farthest well-supporte
 like the front within its u-range, as a plane), caps (a counter top, a wall cabinet's underside,
 an end panel continuing the front's edges backwards: their extent), the other fronts' planes
 (another track of the same cabinet, or a front behind that blocks), the floor (appliance rule);
-:func:`drawer_lib.articulation.joints.carcass_depth` on the points level with the front is the
+:func:`drawer_lib.articulation.probes.carcass_depth` on the points level with the front is the
 fallback measurement (unrestricted, it measures the wall cabinets' fronts from a base front).
 
 Fit (:func:`fit_depths`): minimise sum_i w_i (d_i - m_i)^2 + rho x (inside the carcass, in
@@ -48,7 +48,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from drawer_lib.complete.cut import front_frame as cut_front_frame
 from drawer_lib.articulation.config import JointsConfig
-from drawer_lib.articulation.joints import carcass_depth
+from drawer_lib.articulation.probes import carcass_depth
 from drawer_lib.complete.interiors_config import (
     EvidenceConfig,
     InteriorsConfig,

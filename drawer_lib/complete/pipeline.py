@@ -37,7 +37,7 @@ import trimesh
 from drawer_lib.articulation.fronts import sample_points
 from drawer_lib.complete.config import CompleteConfig
 from drawer_lib.complete.cut import body_owner, cut_parts, front_box, front_frame, is_drawer, translated_box_hull
-from drawer_lib.complete.interiors import (build_interiors, drawer_rule_interiors, floor_height, interior_colours)
+from drawer_lib.complete.interiors import build_interiors, drawer_rule_interiors, floor_height, interior_colours
 from drawer_lib.complete.io import STATIC, write_complete
 from drawer_lib.complete.rigid import build_rigids
 from drawer_lib.complete.static_collision import collision_fidelity, static_collision
@@ -48,11 +48,11 @@ from drawer_lib.io.mesh import load_mesh
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
-from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, convex_pieces, mesh_shape
+from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
+from drawer_lib.splat.gaussians import blend_weights, box_surface_gaussians, concat, subset
+from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.sh import C0
-from drawer_lib.twin.gaussians import blend_weights, concat, load_gaussian_ply, subset
-from drawer_lib.twin.interior_gaussians import box_surface_gaussians
 
 
 @dataclass
@@ -217,8 +217,8 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
 
         inst = cap.root / capture_name("gt_mesh_instances")
         rows = interior_depth_error(parts, load_mesh(gt_mesh), read_parts(cap.root / capture_name("gt_parts")),
-                                    list(fitted.values()), list(rule.values()),
-                                    np.load(inst) if inst.is_file() else None)
+                                    {k: (x.template, x.free_depth) for k, x in fitted.items()},
+                                    {k: x.free_depth for k, x in rule.items()}, np.load(inst) if inst.is_file() else None)
         s = summarise_depth_errors(rows)
         m.update({"interior_depth_error": s.get("fitted_mean"), "interior_depth_error_max": s.get("fitted_max"),
                   "interior_depth_error_drawer_rule": s.get("rule_mean"),
@@ -261,7 +261,7 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
                     ) -> tuple[dict[str, Gaussians], dict[str, np.ndarray]]:
     """Split the appearance model's Gaussians by body and add the interiors' (module doc, 6).
     Returns the bodies' Gaussians and, per body, which of them are interior ones."""
-    g = load_gaussian_ply(model_dir / "gaussians.ply")
+    g = read_gaussian_ply(model_dir / "gaussians.ply")
     binding = np.load(model_dir / "binding.npz")
     anchor = trimesh.load(model_dir / "anchor_mesh.ply", process=False, force="mesh")
     face = binding["mesh_face"]

@@ -442,7 +442,7 @@ def collision_fidelity(shapes: Sequence[Shape], mesh: trimesh.Trimesh, n_points:
     """How well collision ``shapes`` reproduce a visual ``mesh`` (world, m): Chamfer-L1 (mean of
     both directions, m) between ``n_points`` area samples on the surface of the shapes' union
     (faces shared between adjacent shapes excluded) and on the mesh, each measured to the other
-    *surface* (exact point-to-triangle distance, DESIGN §6); ``accuracy`` shapes -> mesh,
+    *surface* (exact point-to-triangle distance, as the geometry metrics); ``accuracy`` shapes -> mesh,
     ``completeness`` mesh -> shapes (m); F-scores at 1 and 2 cm; ``n_shapes``; ``wall_s``.
 
     ``free``: optional points [N, 3] -> bool [N], True in free space (e.g. :func:`free_space`);

@@ -3,7 +3,7 @@
 import numpy as np
 from jaxtyping import Float
 
-UP = np.array([0.0, 0.0, 1.0])  # world up (DESIGN §4: +z)
+UP = np.array([0.0, 0.0, 1.0])  # world up (+z; docs/formats.md#conventions)
 
 
 def plane_axes(n: Float[np.ndarray, "3"]) -> tuple[Float[np.ndarray, "3"], Float[np.ndarray, "3"]]:

@@ -2,7 +2,7 @@
 
 A revolute joint rotates by q (rad) about the line through ``origin`` along the unit
 ``direction`` (right-hand rule); a prismatic joint translates by q (m) along ``direction``.
-Directions are oriented so that positive q opens a part (DESIGN §5).
+Directions are oriented so that positive q opens a part (as in ``drawer.parts/1``).
 """
 
 import numpy as np

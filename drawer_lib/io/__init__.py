@@ -1,4 +1,4 @@
-"""Files between stages: captures (DESIGN §4), the scene manifest, parts files (DESIGN §5)."""
+"""Files between stages: captures, the scene manifest, parts files (formats: docs/formats.md)."""
 
 from drawer_lib.errors import CaptureError
 from drawer_lib.io.capture import Capture, Frame, load_capture, split_every, write_transforms

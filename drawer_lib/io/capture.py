@@ -1,4 +1,4 @@
-"""The capture format (DESIGN §4): read, validate and write ``transforms.json`` and its files.
+"""The capture format (docs/formats.md#capture): read, validate and write ``transforms.json`` and its files.
 
 This module is the only place that converts the stored OpenGL camera-to-world matrices to the
 library's OpenCV world-to-camera convention (:mod:`drawer_lib.geometry`).

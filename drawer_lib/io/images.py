@@ -12,6 +12,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from drawer_lib.errors import CaptureError
+from drawer_lib.io.atomic import atomic_write_text
 
 
 def _open(path: Path) -> Image.Image:
@@ -133,5 +134,5 @@ def round_floats(obj, decimals: int = FLOAT_DECIMALS):
 def write_json(path: Path, obj, indent: int | None = 2) -> None:
     """Write JSON with floats rounded to :data:`FLOAT_DECIMALS` places (so the same values give
     the same bytes on every machine). NaN and inf are refused: they are not JSON and must not
-    travel downstream."""
-    Path(path).write_text(json.dumps(round_floats(obj), indent=indent, allow_nan=False) + "\n")
+    travel downstream. Written whole or not at all (:func:`drawer_lib.io.atomic.atomic_write_text`)."""
+    atomic_write_text(path, json.dumps(round_floats(obj), indent=indent, allow_nan=False) + "\n")

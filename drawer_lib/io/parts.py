@@ -1,4 +1,4 @@
-"""The parts format ``drawer.parts/1`` (DESIGN §5), shared by ground truth and predictions.
+"""The parts format ``drawer.parts/1`` (docs/formats.md#parts-drawerparts1), shared by ground truth and predictions.
 
 A revolute or prismatic part has an ``axis`` (origin, unit direction oriented so that a positive
 joint value opens the part), ``limits`` (rad or m) and the closed moving ``front`` rectangle
@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drawer_lib.errors import CaptureError
+from drawer_lib.errors import CaptureError, InputError
+from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.images import read_json, write_json
 
 SCHEMA = "drawer.parts/1"
@@ -231,3 +232,16 @@ def read_parts(path: Path) -> PartsFile:
 
 def write_parts(path: Path, parts: PartsFile) -> None:
     write_json(path, parts.to_json())
+
+
+def joint_motion(part: Part, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """(R [3, 3], t [3]) of the part's body at joint value ``q`` (rad or m)
+    (:func:`drawer_lib.geometry.joints.joint_transform`; positive q opens); an
+    unusable axis or q is an error naming the part."""
+    if not part.articulated:
+        raise InputError(f"part {part.id}: {part.kind} parts have no joint")
+    a = np.asarray(part.axis.direction, np.float64)
+    if not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-9 or not np.isfinite(q):
+        raise InputError(f"part {part.id}: axis direction {part.axis.direction} or q = {q} is not usable")
+    T = joint_transform(part.kind, np.asarray(part.axis.origin, np.float64), a, q)
+    return T[:3, :3], T[:3, 3]

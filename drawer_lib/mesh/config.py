@@ -12,7 +12,7 @@ class MeshConfig:
     on their own voxel grid); ``level``: the iso-level extracted; ``coarse_factor``: the SDF is
     evaluated on a grid this much coarser first and finely only near the surface;
     ``near``: the frustum near plane of the "seen by a train camera" mask;
-    ``eval_points``: surface samples per mesh for the metrics (DESIGN §6)."""
+    ``eval_points``: surface samples per mesh for the metrics (docs/formats.md#geometry)."""
 
     cell: float = 0.01
     level: float = 0.0

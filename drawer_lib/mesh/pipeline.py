@@ -12,7 +12,7 @@ from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.mesh.clean import clean_mesh
 from drawer_lib.mesh.config import MeshConfig
-from drawer_lib.mesh.extract import grid_field_mesh, marching_cubes_mesh, sdf_grid, seen_crossing_mask
+from drawer_lib.geometry.isosurface import grid_field_mesh, marching_cubes_mesh, sdf_grid, seen_crossing_mask
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun

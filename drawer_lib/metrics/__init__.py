@@ -1,1 +1,1 @@
-"""Metrics of every stage (DESIGN §6): geometry, images (PSNR / SSIM / LPIPS), articulation, and the evaluate stage."""
+"""Metrics of every stage (definitions: docs/formats.md#metric-definitions): geometry, images (PSNR / SSIM / LPIPS), articulation, and the evaluate stage."""

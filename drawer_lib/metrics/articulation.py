@@ -1,4 +1,4 @@
-"""Articulation metrics (DESIGN §6; paper Tab. 4/5): front matching, precision / recall, EA-score.
+"""Articulation metrics (paper Tab. 4/5; docs/formats.md): front matching, precision / recall, EA-score.
 
 Matching: a predicted articulated part and a GT one are candidates when their front normals are
 within 45 deg and the predicted front's centre lies within 5 cm of the GT front plane; their

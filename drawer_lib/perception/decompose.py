@@ -1,4 +1,4 @@
-"""Scene decomposition from 2D detections (DRAWER §3.3; reference §3.2-3.7), on the CPU.
+"""Scene decomposition from 2D detections (DRAWER §3.3; the official code's ``percept_stage1-6``), on the CPU.
 
 1. Every detection mask (eroded) is lifted to the mesh faces it covers, through per-frame
    face-id maps (ray cast of the same mesh, so visibility is exact).

@@ -7,9 +7,8 @@ import numpy as np
 
 from drawer_lib.paths import LAYOUT, ScenePaths
 from drawer_lib.report.geometry_table import read_curve
-
-PAPER = {"textured_mesh": (19.71, 0.785, 0.323), "static_gs": (25.87, 0.889, 0.276),
-         "movable_gs": (26.49, 0.896, 0.193), "movable_gs_ste": (27.80, 0.912, 0.159)}
+from drawer_lib.report.markdown import md_table
+from drawer_lib.report.paper import PAPER
 
 
 def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
@@ -25,26 +24,26 @@ def collect(out: Path, scenes: list[str], variants: list[str]) -> dict:
 
 
 def table(rows: dict, variants: list[str]) -> tuple[str, dict]:
-    lines = ["| scene | variant | PSNR ↑ | SSIM ↑ | LPIPS ↓ | Gaussians | in bounds | raw param at a bound "
-             "(pos / tilt / any) | steps | training (s) | paper PSNR/SSIM/LPIPS |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    head = ["scene", "variant", "PSNR ↑", "SSIM ↑", "LPIPS ↓", "Gaussians", "in bounds",
+            "raw param at a bound (pos / tilt / any)", "steps", "training (s)", "paper PSNR/SSIM/LPIPS"]
+    cells: list[list] = []
     js: dict = {}
     for s, vs in rows.items():
         for v in variants:
             if v not in vs:
                 continue
             m = vs[v]["metrics"]
-            paper = "/".join(f"{x:g}" for x in PAPER[v]) if v in PAPER else "–"
+            paper = "/".join(f"{x:g}" for x in PAPER["appearance"][v]) if v in PAPER["appearance"] else "–"
             inb = {True: "yes", False: "no"}.get(m.get("within_face_bounds"), "–")
             act = ("–" if "at_bound_any" not in m else
                    " / ".join(f"{100 * m[f'at_bound_{k}']:.0f} %" for k in ("position", "tilt", "any")))
-            lines.append(f"| {s} | {v} | {m['psnr']:.2f} | {m['ssim']:.3f} | {m['lpips']:.3f} | "
-                         f"{m.get('n_gaussians', '–')} | {inb} | {act} | {m.get('steps', '–')} | "
-                         f"{m.get('train_s', float('nan')):.1f} | {paper} |")
+            cells.append([s, v, f"{m['psnr']:.2f}", f"{m['ssim']:.3f}", f"{m['lpips']:.3f}",
+                          m.get("n_gaussians", "–"), inb, act, m.get("steps", "–"),
+                          f"{m.get('train_s', float('nan')):.1f}", paper])
             js.setdefault(s, {})[v] = {k: m.get(k) for k in ("psnr", "ssim", "lpips", "n_gaussians", "steps",
                                                               "train_s", "within_budget", "within_face_bounds")}
             js[s][v].update({k: val for k, val in m.items() if k.startswith("at_bound_")})
-    return "\n".join(lines) + "\n", js
+    return md_table(head, cells), js
 
 
 def plot(rows: dict, path: Path) -> None:

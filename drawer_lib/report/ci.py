@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drawer_lib.paths import LAYOUT, ScenePaths
+from drawer_lib.report.markdown import md_table
 
 # (stage folder, key) pairs the dashboard shows for each scene
 STAGE_KEYS = {
@@ -104,9 +105,9 @@ def _f(v) -> str:
 def dashboard(now: dict, base: dict, title: str) -> tuple[str, list[str]]:
     """The markdown dashboard and the regressions."""
     rows, bad = compare(now, base)
-    lines = [f"## {title}", "", "| metric | baseline | this run | change | gate |", "|---|---|---|---|---|"]
-    lines += [f"| {k} | {_f(b)} | {_f(n)} | {_f(c)} | {v} |" for k, b, n, c, v in rows]
-    lines += ["", f"**{len(bad)} regression(s)**" + (":" if bad else " beyond the tolerances of "
+    lines = [f"## {title}", "", md_table(["metric", "baseline", "this run", "change", "gate"],
+                                         ([k, _f(b), _f(n), _f(c), v] for k, b, n, c, v in rows))]
+    lines += [f"**{len(bad)} regression(s)**" + (":" if bad else " beyond the tolerances of "
                                                    "`drawer_lib/report/ci.py` GATES.")]
     lines += [f"- {m}" for m in bad]
     return "\n".join(lines) + "\n", bad

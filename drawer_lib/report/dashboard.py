@@ -27,12 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from drawer_lib.paths import LAYOUT, ScenePaths
-from drawer_lib.report.ablation import PAPER as PAPER_TAB3
 from drawer_lib.report.geometry_table import read_curve
+from drawer_lib.report.markdown import md_table
+from drawer_lib.report.paper import PAPER
 from drawer_lib.report.pareto import DIR as PARETO_DIR
 
-PAPER_TAB4 = {"precision": 0.972, "recall": 0.840}  # 105/108, 105/125
-PAPER_TAB5_EMD = 1.41e-5
 SCENE_STAGES = ("capture", "sdf", "mesh", "decompose", "articulate", "evaluate", "complete", "twin", "stability",
                 "simulate")
 SECTIONS = (("headline", "Headline"), ("geometry", "Geometry"), ("appearance", "Appearance ablation (Tab. 3)"),
@@ -138,11 +137,7 @@ class Table:
     rows: list[list[str]]
 
     def md(self) -> str:
-        if not self.rows:
-            return "_nothing to show_\n"
-        lines = ["| " + " | ".join(self.head) + " |", "|" + "---|" * len(self.head)]
-        lines += ["| " + " | ".join(r) + " |" for r in self.rows]
-        return "\n".join(lines) + "\n"
+        return md_table(self.head, self.rows) if self.rows else "_nothing to show_\n"
 
     def html(self) -> str:
         if not self.rows:
@@ -267,7 +262,7 @@ def _appearance(data: ReportData) -> Table:
               [])
     for s, vs in (data.ablation or {}).items():
         for v, m in vs.items():
-            paper = " / ".join(f"{x:g}" for x in PAPER_TAB3[v]) if v in PAPER_TAB3 else "–"
+            paper = " / ".join(f"{x:g}" for x in PAPER["appearance"][v]) if v in PAPER["appearance"] else "–"
             t.rows.append([s, v, _f(m.get("psnr"), ".2f"), _f(m.get("ssim"), ".3f"), _f(m.get("lpips"), ".3f"),
                            _f(m.get("n_gaussians"), "d") if m.get("n_gaussians") is not None else "–",
                            _f(m.get("train_s"), ".1f"), paper])
@@ -284,7 +279,7 @@ def _articulation(data: ReportData) -> Table:
         t.rows.append([sc.name, _f(m.get("n_pred"), "d"), _f(m.get("n_gt"), "d"), _f(m.get("n_correct"), "d"),
                        _f(m.get("precision"), ".3f"), _f(m.get("recall"), ".3f"), _f(m.get("ea_score"), ".3f"),
                        f"{_f(m.get('rigid_precision'), '.2f')} / {_f(m.get('rigid_recall'), '.2f')}",
-                       f"{PAPER_TAB4['precision']:.3f} / {PAPER_TAB4['recall']:.3f}"])
+                       f"{PAPER['articulation']['precision']:.3f} / {PAPER['articulation']['recall']:.3f}"])
     return t
 
 
@@ -298,7 +293,7 @@ def _motion(data: ReportData) -> tuple[Table, Table]:
         if sm is None:
             continue
         t.rows.append([sc.name, _f(ev.get("emd"), ".3g"), _f(ev.get("emd_max"), ".3g"), _f(ev.get("n_emd"), "d")
-                       if ev.get("n_emd") is not None else "–", f"{PAPER_TAB5_EMD:g}",
+                       if ev.get("n_emd") is not None else "–", f"{PAPER['motion_emd']:g}",
                        _f(sm.get("kinematic_dev_max_m"), ".2f", 1000),
                        f"{sm.get('integrator')}, {_f(sm.get('timestep'), 'g')} s", _f(sm.get("realtime_factor"), ".1f")])
 
@@ -429,10 +424,10 @@ def render(data: ReportData) -> tuple[str, str]:
     add("headline", _headline(data))
     add("geometry", _geometry(data), None if data.geometry else "skipped: reports/geometry/table.json is missing")
     add("appearance", _appearance(data), None if data.ablation else "skipped: reports/ablation/table.json is missing")
-    add("articulation", _articulation(data), "Precision = correct / predicted, recall = correct / GT (DESIGN §6); "
+    add("articulation", _articulation(data), "Precision = correct / predicted, recall = correct / GT (docs/formats.md); "
         "EA-score over correct revolute parts.")
     tm, tp = _motion(data)
-    add("motion", tm, "Motion EMD per DESIGN §6: each part driven open in the twin against its GT joint; mean over "
+    add("motion", tm, "Motion EMD (docs/formats.md): each part driven open in the twin against its GT joint; mean over "
         "correct parts. Kinematic deviation: the simulation against the part's own joint.")
     add("motion", tp, "Interaction probes (passed / run, worst value).")
     add("opened", _opened(data), "Each part opened to half its range, rendered against the GT at the same opening.")
@@ -471,27 +466,16 @@ def render(data: ReportData) -> tuple[str, str]:
     return page, md
 
 
-def write_text_atomic(files: dict[Path, str]) -> None:
-    """Write every file to a temporary sibling first, then rename them all into place."""
-    tmps = []
-    for p, text in files.items():
-        p = Path(p)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_name(f".{p.name}.tmp")
-        tmp.write_text(text)
-        tmps.append((tmp, p))
-    for tmp, p in tmps:
-        tmp.replace(p)
-
-
 def run_report(out: Path, reports: Path, scenes: list[str], geometry_variants: list[str],
                appearance_variants: list[str]) -> dict:
     """The ``report`` stage: collect (the numerical-extremes tests' outcomes from the ``extremes``
     stage's table), write ``index.html``, ``summary.md`` and ``extremes.json`` (the report's
     metrics) into ``reports``; returns those metrics."""
     import time
+    from contextlib import ExitStack
 
     from drawer_lib.errors import InputError
+    from drawer_lib.io.atomic import atomic_open
     from drawer_lib.io.images import write_json
     from drawer_lib.report.extremes import read_extremes
     from drawer_lib.runner import peak_rss_mb
@@ -504,7 +488,9 @@ def run_report(out: Path, reports: Path, scenes: list[str], geometry_variants: l
         raise InputError(f"report: no stage metrics under {out}/ for scenes {scenes} (run dvc repro first)")
     rows = data.extremes or []
     page, md = render(data)
-    write_text_atomic({reports / LAYOUT["report"]["index"]: page, reports / LAYOUT["report"]["summary"]: md})
+    with ExitStack() as both:  # both written before either is renamed into place
+        for name, text in (("index", page), ("summary", md)):
+            both.enter_context(atomic_open(reports / LAYOUT["report"][name], "w")).write(text)
     metrics = {"extremes_passed": sum(r["outcome"] == "passed" for r in rows), "extremes_n": len(rows),
                "n_skipped": len(data.skipped), "page_kb": round(len(page.encode()) / 1024, 1),
                "wall_s": round(time.perf_counter() - t0, 3), "peak_rss_mb": round(peak_rss_mb(), 1)}

@@ -146,10 +146,7 @@ def extremes_stage(root: Path, reports: Path, enabled: bool = True, timeout: flo
     if why:
         m["skipped"] = {"extremes": why}
     path = Path(reports) / DIR / LAYOUT["report"]["table_json"]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    write_json(tmp, m)
-    tmp.replace(path)
+    write_json(path, m)  # atomic: a temporary sibling renamed into place
     return m
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from drawer_lib.paths import LAYOUT, ScenePaths
+from drawer_lib.report.markdown import md_table
 
 COLUMNS = [("chamfer_l1", "Chamfer-L1 (mm)", 1000.0), ("fscore_1cm", "F@1cm", 1.0), ("fscore_2cm", "F@2cm", 1.0),
            ("normal_consistency", "NC", 1.0)]
@@ -55,19 +56,20 @@ def _fmt(v, scale: float) -> str:
 
 def table(rows: list[Row]) -> tuple[str, dict]:
     """Markdown table and the JSON of the same numbers."""
-    head = "| scene | config | depth used | " + " | ".join(c[1] for c in COLUMNS) + " | sdf time (s) | sdf stage (s) | mesh stage (s) |"
-    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    head = ["scene", "config", "depth used", *(c[1] for c in COLUMNS), "sdf time (s)", "sdf stage (s)",
+            "mesh stage (s)"]
+    cells: list[list] = []
     js: dict = {}
     for r in rows:
         depth = r.sdf.get("depth_source", "sensor" if r.sdf.get("method") == "tsdf" else "?")
         vals = [r.mesh.get(c[0]) for c in COLUMNS]
-        lines.append(f"| {r.scene} | {r.name} | {depth} | " + " | ".join(_fmt(v, c[2]) for v, c in zip(vals, COLUMNS))
-                     + f" | {r.sdf.get('train_s', float('nan')):.1f} | {r.sdf.get('wall_s', float('nan')):.1f} | "
-                     + f"{r.mesh.get('wall_s', float('nan')):.1f} |")
+        cells.append([r.scene, r.name, depth, *(_fmt(v, c[2]) for v, c in zip(vals, COLUMNS)),
+                      f"{r.sdf.get('train_s', float('nan')):.1f}", f"{r.sdf.get('wall_s', float('nan')):.1f}",
+                      f"{r.mesh.get('wall_s', float('nan')):.1f}"])
         js.setdefault(r.scene, {})[r.name] = {c[0]: r.mesh.get(c[0]) for c in COLUMNS} | {
             "depth_source": depth, "sdf_train_s": r.sdf.get("train_s"), "sdf_wall_s": r.sdf.get("wall_s"),
             "mesh_wall_s": r.mesh.get("wall_s")}
-    return "\n".join(lines) + "\n", js
+    return md_table(head, cells), js
 
 
 def plot(rows: list[Row], path: Path) -> None:

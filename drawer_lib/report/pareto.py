@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from drawer_lib.errors import ConfigError, InputError
+from drawer_lib.report.markdown import md_table
 from drawer_lib.report.sweep import collect_sweep
 
 DIR = "pareto"  # the stage's folder: out/<scene>/pareto/
@@ -219,15 +220,16 @@ def table_md(pts: list[Point], budgets_s: list[float]) -> tuple[str, dict]:
             continue
         front = pareto_front(fp, LOWER_IS_BETTER[fam])
         on = {id(p) for p in front}
-        out.write(f"### {fam}: {ERROR_NAME[fam]} against wall time\n\n| setting | wall (s) | {ERROR_NAME[fam]} "
-                  "| secondary | Pareto |\n|---|---|---|---|---|\n")
-        for p in sorted(fp, key=lambda p: p.wall_s):
-            sec = ", ".join(f"{k} {v:.4g}" for k, v in p.extra.items() if isinstance(v, (int, float)))
-            out.write(f"| {p.label} | {p.wall_s:.1f} | {p.error:.3f} | {sec} | {'**yes**' if id(p) in on else ''} |\n")
-        out.write(f"\n| budget | pick ({fam}) | wall (s) | {ERROR_NAME[fam]} |\n|---|---|---|---|\n")
-        for b in budgets_s:
-            p = pick(front, b)
-            out.write(f"| {b:g} s | {p.label if p else 'nothing fits'} | {_n(p and p.wall_s)} | {_n(p and p.error)} |\n")
+        out.write(f"### {fam}: {ERROR_NAME[fam]} against wall time\n\n")
+        out.write(md_table(["setting", "wall (s)", ERROR_NAME[fam], "secondary", "Pareto"],
+                           ([p.label, f"{p.wall_s:.1f}", f"{p.error:.3f}",
+                             ", ".join(f"{k} {v:.4g}" for k, v in p.extra.items() if isinstance(v, (int, float))),
+                             "**yes**" if id(p) in on else ""] for p in sorted(fp, key=lambda p: p.wall_s))))
+        picks = [(b, pick(front, b)) for b in budgets_s]
+        out.write("\n" + md_table(["budget", f"pick ({fam})", "wall (s)", ERROR_NAME[fam]],
+                                  ([f"{b:g} s", p.label if p else "nothing fits", _n(p and p.wall_s), _n(p and p.error)]
+                                   for b, p in picks)))
+        for b, p in picks:
             metrics[f"{fam}_pick_{b:g}s_error"] = None if p is None else round(p.error, 4)
             metrics[f"{fam}_pick_{b:g}s_wall_s"] = None if p is None else round(p.wall_s, 2)
         metrics[f"{fam}_front_size"] = len(front)

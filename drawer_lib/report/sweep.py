@@ -19,6 +19,7 @@ from typing import Any
 from hydra.experimental.callback import Callback
 
 from drawer_lib.paths import LAYOUT
+from drawer_lib.report.markdown import md_table
 
 _SKIP = {"peak_rss_mb"}
 
@@ -81,11 +82,8 @@ def sweep_markdown(rows: list[dict], max_metrics: int = 24) -> str:
     ok, mk = varying(rows)
     mk = mk[:max_metrics]
     head = ["job", *ok, *mk]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for i, r in enumerate(rows):
-        lines.append("| " + " | ".join([str(i), *(r["overrides"].get(k, "–") for k in ok),
-                                        *(_fmt(r["metrics"].get(k)) for k in mk)]) + " |")
-    return "\n".join(lines) + "\n"
+    return md_table(head, ([i, *(r["overrides"].get(k, "–") for k in ok), *(_fmt(r["metrics"].get(k)) for k in mk)]
+                           for i, r in enumerate(rows)))
 
 
 def sweep_plot(rows: list[dict], path: Path, max_metrics: int = 6) -> None:

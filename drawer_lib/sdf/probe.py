@@ -1,7 +1,7 @@
 """Quick accuracy probes of an SDF during training (the ``sdf`` stage's error-against-time curve).
 
 A probe extracts a quick mesh (marching cubes at ``cell``, only where the train cameras look)
-and scores it against ``gt/mesh.ply`` (DESIGN §6 metrics, fewer sample points than the mesh
+and scores it against ``gt/mesh.ply`` (the metrics of docs/formats.md#geometry, fewer sample points than the mesh
 stage), and measures the rendered depth of the test views against the GT depth ray cast from
 ``gt/mesh.ply``. Probes run outside the training clock.
 """
@@ -17,7 +17,7 @@ from drawer_lib.geometry.camera import pixel_dirs
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.mesh import load_mesh
-from drawer_lib.mesh.extract import grid_field_mesh, marching_cubes_mesh, sdf_grid, seen_crossing_mask
+from drawer_lib.geometry.isosurface import grid_field_mesh, marching_cubes_mesh, sdf_grid, seen_crossing_mask
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.paths import capture_name
 from drawer_lib.sdf.io import GridSDF

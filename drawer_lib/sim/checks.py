@@ -1,4 +1,4 @@
-"""Physical checks of a built twin (issue 18): does every part open, stop at its limits and stay
+"""Physical checks of a built twin: does every part open, stop at its limits and stay
 clear of the scene, do rigid objects rest, does nothing blow up, and how fast does it simulate.
 
 Each part's drive and pull tests start from a fresh ``MjData`` (all joints at q = 0, every other

@@ -1,13 +1,12 @@
 """Files of the twin exports: OBJ meshes and atomic folder writes."""
 
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from collections.abc import Callable, Sequence
 
 import numpy as np
 from jaxtyping import Float, Int
+
+from drawer_lib.io.atomic import atomic_folder
 
 
 def shortest(v: float) -> str:
@@ -33,36 +32,7 @@ def write_entries_atomic(folder: Path, entries: Sequence[str], build: Callable[[
     system) and may verify them there; only when it returns are they moved into ``folder``
     (a whole temporary folder renamed when ``folder`` does not exist yet; otherwise each entry,
     in the given order, replaces its old version by a rename). On any error nothing of
-    ``folder`` changes and the temporary folder is removed.
+    ``folder`` changes and the temporary folder is removed (:func:`drawer_lib.io.atomic.atomic_folder`).
     """
-    folder = Path(folder)
-    if folder.exists():
-        tmp = Path(tempfile.mkdtemp(prefix=".write-", suffix=".partial", dir=folder))
-    else:
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".partial", dir=folder.parent))
-    try:
+    with atomic_folder(folder, entries) as tmp:
         build(tmp)
-        missing = [e for e in entries if not (tmp / e).exists()]
-        if missing:
-            raise RuntimeError(f"write_entries_atomic: build did not write {missing}")
-        if not folder.exists():
-            tmp.rename(folder)
-            return
-        for name in entries:
-            src, dst = tmp / name, folder / name
-            if src.is_dir() and dst.exists():
-                old = folder / f".{name}.old-{os.getpid()}"
-                if old.exists():
-                    shutil.rmtree(old)
-                dst.rename(old)
-                src.rename(dst)
-                shutil.rmtree(old, ignore_errors=True)
-            elif dst.is_dir():
-                shutil.rmtree(dst)
-                src.rename(dst)
-            else:
-                os.replace(src, dst)
-    finally:
-        if tmp.exists() and tmp != folder:
-            shutil.rmtree(tmp, ignore_errors=True)

@@ -1,4 +1,4 @@
-"""The twin as a MuJoCo model (DESIGN §5b ``scene.xml``), built in code with ``mujoco.MjSpec``.
+"""The twin as a MuJoCo model (``scene.xml`` of docs/formats.md), built in code with ``mujoco.MjSpec``.
 
 Layout: the world frame is the capture's (m, +z up, gravity -z). The static scene is a body
 ``static`` without joints (welded to the world) holding the static collision pieces and the

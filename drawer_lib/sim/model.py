@@ -1,7 +1,7 @@
 """The twin's physical description in memory (what the ``twin`` exports are built from) and the
 simulation config.
 
-Conventions (DESIGN §5, §5b): one world frame, the capture's: metres, +z up, gravity along -z.
+Conventions (docs/formats.md): one world frame, the capture's: metres, +z up, gravity along -z.
 A part's joint value ``q`` is in radians (revolute) or metres (prismatic); ``q = 0`` is the
 closed pose the geometry is given in and positive ``q`` opens the part (right-hand rule about
 ``axis_direction`` for revolute, displacement along it for prismatic). Densities are kg/m^3,

@@ -1,4 +1,4 @@
-"""Building blocks of the stability study (issue 19's ``stability`` stage): one hinge with a
+"""Building blocks of the stability study (the ``stability`` stage): one hinge with a
 torsional spring and damper, whose motion has a closed form, simulated by each MuJoCo
 integrator at a given timestep, with its error against the closed form, its wall time per
 simulated second and every divergence signal MuJoCo gives (non-finite state, its warning

@@ -1,4 +1,4 @@
-"""The stability study (issue 19's ``stability`` stage): integrators x timesteps x cases, each
+"""The stability study (the ``stability`` stage): integrators x timesteps x cases, each
 cell's error against a reference, its wall time per simulated second and every divergence
 signal MuJoCo gives; the choice of the twin's integrator and timestep; remedies for the
 extreme cases that choice does not handle.

@@ -1,4 +1,4 @@
-"""The twin as a URDF (DESIGN §5b ``urdf/scene.urdf`` + ``urdf/meshes/*.obj``).
+"""The twin as a URDF (``urdf/scene.urdf`` + ``urdf/meshes/*.obj``; docs/formats.md).
 
 Tree: a root link ``world``; the static scene in link ``static`` fixed to it (joint
 ``static``); each articulated part a link ``<id>`` under ``static`` through a ``revolute`` /

@@ -1,4 +1,4 @@
-"""The twin as a USD stage with UsdPhysics (DESIGN §5b ``scene.usda``), written with ``pxr``
+"""The twin as a USD stage with UsdPhysics (``scene.usda``; docs/formats.md), written with ``pxr``
 (usd-core); no PhysxSchema.
 
 Stage: metres (metersPerUnit 1), kilograms, up axis Z, default prim ``/World``::

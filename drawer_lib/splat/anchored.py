@@ -9,7 +9,7 @@ edge AB, ŷ = n × x̂, n the unit normal; the triangle embedded in 2D as A=(0,0
   normal axis is very thin;
 - rotation: q_face ⊗ q_tilt ⊗ q_spin, the tilt of the normal axis clipped to ``cone`` rad.
 
-R is the face's circumradius (the official code's choice, §8 of the reference notes; the paper
+R is the face's circumradius (the official code's choice; the paper
 says inradius — we follow the code). Every clip goes through :func:`clip_through`, whose
 ``mode`` is ``ste`` (forward = clipped value, gradient passed straight to the raw parameter:
 x + sg(c(x) − x), the paper's method), ``hard`` (plain clip: zero gradient outside the bounds,

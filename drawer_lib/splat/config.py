@@ -29,7 +29,7 @@ class LossConfig:
 @dataclass(frozen=True)
 class LrConfig:
     """Adam learning rates per parameter group; the position groups (in-face position and normal
-    offset, metres) decay exponentially to ``position_final``. The reference's 1.6e-4 -> 1.6e-6
+    offset, metres) decay exponentially to ``position_final``. The official code's 1.6e-4 -> 1.6e-6
     moves a Gaussian ~0.04 face circumradii per step on its ~4 mm faces over 30k steps; on a
     30k-face anchor (R ~ 3 cm) and a 1500-step schedule the same rate is 30x slower relative to
     the face. The sweep (``make study``, conf/experiment/ste_*lr*.yaml; docs/appearance.md) puts

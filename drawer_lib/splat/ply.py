@@ -1,5 +1,5 @@
-"""3D Gaussian splatting PLY (the INRIA layout that common Gaussian viewers read) and the face
-binding of mesh-anchored Gaussians.
+"""3D Gaussian splatting PLY (the INRIA layout that common Gaussian viewers read): write and read
+activated Gaussians, and the face binding of mesh-anchored Gaussians.
 
 Vertex properties, float32, in this order: x y z, nx ny nz (zeros), f_dc_0..2, f_rest_0..(3(K-1)-1)
 (channel-major: all of R's higher-order coefficients, then G's, then B's), opacity (logit),
@@ -13,6 +13,7 @@ import torch
 from torch import Tensor
 
 from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.io.atomic import atomic_open
 from drawer_lib.splat.render import Gaussians
 
 
@@ -36,16 +37,13 @@ def write_gaussian_ply(path: Path, g: Gaussians) -> None:
     names = gaussian_ply_fields(K - 1)
     header = "ply\nformat binary_little_endian 1.0\n" + f"element vertex {n}\n"
     header += "".join(f"property float {name}\n" for name in names) + "end_header\n"
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("wb") as f:
+    with atomic_open(path, "wb") as f:
         f.write(header.encode("ascii"))
         f.write(np.ascontiguousarray(data).tobytes())
-    tmp.replace(path)
 
 
-def read_gaussian_ply(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a binary little-endian float PLY (for round trips and tests)."""
+def read_ply_columns(path: Path) -> dict[str, np.ndarray]:
+    """The columns of a binary little-endian float PLY, by property name."""
     raw = Path(path).read_bytes()
     end = raw.index(b"end_header\n") + len(b"end_header\n")
     lines = raw[:end].decode("ascii").splitlines()
@@ -55,6 +53,22 @@ def read_gaussian_ply(path: Path) -> dict[str, np.ndarray]:
     names = [x.split()[-1] for x in lines if x.startswith("property float")]
     arr = np.frombuffer(raw[end:], "<f4", count=n * len(names)).reshape(n, len(names))
     return {k: arr[:, i] for i, k in enumerate(names)}
+
+
+def read_gaussian_ply(path: Path) -> Gaussians:
+    """The activated Gaussians of an INRIA-layout PLY (:func:`write_gaussian_ply`)."""
+    c = read_ply_columns(path)
+    need = {"x", "y", "z", "f_dc_0", "opacity", "scale_0", "rot_0"}
+    if not need <= set(c):
+        raise InputError(f"{path}: not a Gaussian PLY (missing {sorted(need - set(c))})")
+    n = len(c["x"])
+    k_rest = sum(k.startswith("f_rest_") for k in c) // 3
+    t = lambda *ks: torch.from_numpy(np.stack([c[k] for k in ks], -1).astype(np.float32))  # noqa: E731
+    rest = (t(*[f"f_rest_{i}" for i in range(3 * k_rest)]).view(n, 3, k_rest).transpose(1, 2)
+            if k_rest else torch.zeros(n, 0, 3))
+    sh = torch.cat([t("f_dc_0", "f_dc_1", "f_dc_2")[:, None], rest], 1)
+    return Gaussians(t("x", "y", "z"), t("rot_0", "rot_1", "rot_2", "rot_3"), torch.exp(t("scale_0", "scale_1", "scale_2")),
+                     torch.sigmoid(torch.from_numpy(c["opacity"].astype(np.float32))), sh)
 
 
 def write_face_binding(path: Path, face_of_gaussian: Tensor, face_ids: Tensor, means_2d: Tensor, elevate: Tensor) -> None:

@@ -1,5 +1,5 @@
 """Adaptive density control for mesh-anchored Gaussians (gsplat's Strategy shape; DRAWER's
-``after_train`` / ``split_gaussians`` / ``dup_gaussians`` / ``cull_gaussians``, reference §1.7).
+``after_train`` / ``split_gaussians`` / ``dup_gaussians`` / ``cull_gaussians`` in its official code).
 
 As in gsplat, the strategy dataclass *is* the config (``appearance.strategy``; ``null`` turns
 density control off) and is never mutated: the running statistics live in the dict that
@@ -20,7 +20,7 @@ from drawer_lib.splat.anchored import AnchoredParams, FaceFrames
 
 @dataclass(frozen=True)
 class MeshAnchoredStrategy:
-    """Thresholds (reference defaults scaled to a short CPU schedule): densify when the mean
+    """Thresholds (the official code's defaults scaled to a short CPU schedule): densify when the mean
     |2D-mean gradient| (x 0.5 max(H, W)) exceeds ``grad_thresh``; split (children with scales
     / ``split_shrink``) when the largest clipped scale > ``size_thresh`` (m), else duplicate;
     at most ``max_gaussians``; cull opacity < ``cull_alpha``, never emptying a face (face

@@ -100,7 +100,7 @@ class EvalResult:
 
 
 def evaluate_images(pred: torch.Tensor, gt: torch.Tensor, with_lpips: bool = True) -> EvalResult:
-    """Mean PSNR / SSIM / LPIPS (DESIGN §6) of predictions [T, H, W, 3] against GT."""
+    """Mean PSNR / SSIM / LPIPS (docs/formats.md#nvs) of predictions [T, H, W, 3] against GT."""
     from drawer_lib.metrics.lpips import lpips
 
     x, y = pred.permute(0, 3, 1, 2).clamp(0, 1), gt.permute(0, 3, 1, 2)

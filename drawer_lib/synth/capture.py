@@ -1,4 +1,4 @@
-"""Render a procedural kitchen into a capture folder (DESIGN §4) with ground truth."""
+"""Render a procedural kitchen into a capture folder (docs/formats.md#capture) with ground truth."""
 
 from collections.abc import Callable
 from dataclasses import dataclass

@@ -6,7 +6,7 @@ built at the closed state (all joints at 0) as textured meshes grouped into enti
 MuJoCo builder (:mod:`drawer_lib.synth.model`) and the ground truth (:mod:`drawer_lib.synth.gt`)
 both read this one description.
 
-Joint conventions (DESIGN §5): ``axis_dir`` is oriented so that a positive joint value opens the
+Joint conventions (as in ``drawer.parts/1``): ``axis_dir`` is oriented so that a positive joint value opens the
 part; for a revolute front with outward normal n and unit vector r from the hinge edge towards
 the free edge, that is ``axis_dir = r x n``. Hinge axes lie on the hinge edge of the front's
 outer face, so an opening front never sweeps into its carcass or its neighbours' gaps.

@@ -10,7 +10,7 @@ from drawer_lib.viewer.config import RecordConfig
 
 @dataclass(frozen=True)
 class RendersConfig:
-    """Opened-state renders (DESIGN §5b ``renders/``): each part at ``open_fraction`` of its
+    """Opened-state renders (``twin/renders/``, docs/formats.md#renders): each part at ``open_fraction`` of its
     range in every test view (``max_views`` caps them; 0: all), SH degree ``sh_degree``, on a
     ``background`` RGB; ``lpips``: also score LPIPS (AlexNet) against the synthetic reference;
     ``sheet_width``: pixels per tile of the contact sheet (GT | twin, one row per part)."""

@@ -1,5 +1,5 @@
 """What the ``twin`` stage does: ``complete/`` + ``parts.json`` -> ``twin/`` in the format of
-DESIGN §5b.
+``drawer.twin/1`` (docs/formats.md).
 
 1. the bodies of ``complete/`` (static scene, articulated parts, rigid objects) as a
    :class:`~drawer_lib.sim.model.TwinModel`, validated;
@@ -17,7 +17,7 @@ DESIGN §5b.
    with part ``<id>`` opened to ``renders.open_fraction`` of its range, every other part closed;
 6. on a synthetic scene, the opened-state scores against the scene's own model posed with the
    matched GT part at the same q (``open_psnr``, ``open_ssim``, ``open_lpips``,
-   ``open_region_psnr``; DESIGN §6), the closed twin's scores against the capture's test
+   ``open_region_psnr``; docs/formats.md#opened-state-nvs), the closed twin's scores against the capture's test
    images (``closed_psnr`` ...), and ``renders/contact_sheet.png`` (GT | twin, a row per part).
 """
 
@@ -48,7 +48,8 @@ from drawer_lib.sim.usd import write_usd
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.synth.config import RenderConfig
 from drawer_lib.twin.config import TwinConfig
-from drawer_lib.twin.gaussians import concat, load_gaussian_ply
+from drawer_lib.splat.gaussians import concat
+from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.twin.renders import opened_q, region_psnr, render_opened
 from drawer_lib.viewer.record import record_twin
 
@@ -142,7 +143,7 @@ def run_twin(cfg: TwinConfig, cap: Capture, parts_path: Path, complete_dir: Path
     gauss: dict[str, Gaussians] = {}
     for bid, f in gfiles.items():
         shutil.copyfile(f, out / "gaussians" / f"{bid}.ply")
-        gauss[bid] = load_gaussian_ply(f)
+        gauss[bid] = read_gaussian_ply(f)
     k = next(iter(gauss.values())).sh.shape[1] if gauss else (cfg.renders.sh_degree + 1) ** 2
     static = concat([gauss.get(STATIC, _empty_gaussians(k))] + [gauss[r.id] for r in model.rigid if r.id in gauss])
     bodies = {p.id: gauss.get(p.id, _empty_gaussians(k)) for p in model.parts}

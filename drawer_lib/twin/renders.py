@@ -1,8 +1,8 @@
-"""Opened-state renders of a twin and their scores (DESIGN §5b ``renders/``, §6 opened-state NVS).
+"""Opened-state renders of a twin and their scores (``renders/`` and opened-state NVS in docs/formats.md).
 
 The twin's Gaussians are one set per body (``static`` and one per articulated part, world frame
 at q = 0). A view of part ``pid`` opened to ``q``: the part's Gaussians moved by its joint
-(:func:`drawer_lib.twin.gaussians.joint_motion`), every other body at q = 0, all rendered
+(:func:`drawer_lib.io.parts.joint_motion`), every other body at q = 0, all rendered
 together. On a synthetic scene the same view of the scene's own model with the GT part's joint
 at the same ``q`` is the reference: ``open_psnr``, ``open_ssim``, ``open_lpips`` over the whole
 image and ``open_region_psnr`` inside the region the moving part covers in either image (the
@@ -17,9 +17,9 @@ from jaxtyping import Float
 from torch import Tensor
 
 from drawer_lib.geometry.camera import Camera
-from drawer_lib.io.parts import Part
+from drawer_lib.io.parts import Part, joint_motion
+from drawer_lib.splat.gaussians import concat, transform
 from drawer_lib.splat.render import Gaussians, render
-from drawer_lib.twin.gaussians import concat, joint_motion, transform
 
 
 def opened_q(part: Part, fraction: float = 0.5) -> float:

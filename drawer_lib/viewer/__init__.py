@@ -1,4 +1,4 @@
-"""A browser viewer of a twin folder (DESIGN §5b) built on viser: the static and per-part
+"""A browser viewer of a twin folder (docs/formats.md#twin-drawertwin1) built on viser: the static and per-part
 Gaussians, collision hulls, joint axes, a slider per joint, live MuJoCo physics, and shareable
 recordings. ``python -m drawer_lib.viewer out/<scene>/twin [--port N]``; see docs/viewer.md.
 

@@ -14,17 +14,10 @@ from pathlib import Path
 
 import viser
 
+from drawer_lib.io.atomic import atomic_write_bytes
 from drawer_lib.viewer.app import TwinViewer
 from drawer_lib.viewer.config import RecordConfig
 from drawer_lib.viewer.scene import load_twin_scene
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    """``data`` to a temporary sibling, then renamed over ``path``: no partial file on failure."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
 
 
 def _smoothstep(t: float) -> float:
@@ -57,11 +50,11 @@ def record_open_each(viewer: TwinViewer, html: Path, viser_file: Path | None = N
                 r.insert_sleep(dt)
             frames += 1
     page = sers[0].as_html().encode()
-    _write_atomic(Path(html), page)
+    atomic_write_bytes(Path(html), page)
     out = {"frames": frames, "seconds": round(frames * dt, 3), "html_bytes": len(page)}
     if viser_file:
         data = sers[1].serialize()
-        _write_atomic(Path(viser_file), data)
+        atomic_write_bytes(Path(viser_file), data)
         out["viser_bytes"] = len(data)
     return out
 

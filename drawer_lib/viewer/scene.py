@@ -1,4 +1,4 @@
-"""What the viewer shows of a twin folder (DESIGN §5b), read without any web code.
+"""What the viewer shows of a twin folder (docs/formats.md#twin-drawertwin1), read without any web code.
 
 A twin folder holds ``twin.json`` (bodies by part id and their Gaussian PLYs) and ``scene.xml``
 (the MJCF the simulator runs). The viewer takes every pose from MuJoCo, so what it shows is what
@@ -31,7 +31,7 @@ from jaxtyping import Float
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_to_matrix
 from drawer_lib.splat.sh import C0
-from drawer_lib.twin.gaussians import load_gaussian_ply
+from drawer_lib.splat.ply import read_gaussian_ply
 
 TWIN_SCHEMA = "drawer.twin/1"
 STATIC = "static"
@@ -230,7 +230,7 @@ def _splats(folder: Path, rel: str | None, what: str, min_scale: float) -> Splat
     path = folder / rel
     if not path.is_file():
         raise InputError(f"{path}: missing (listed for {what} in {folder / 'twin.json'})")
-    return splats_of(load_gaussian_ply(path), min_scale=min_scale, what=str(path))
+    return splats_of(read_gaussian_ply(path), min_scale=min_scale, what=str(path))
 
 
 def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:

@@ -12,7 +12,7 @@ from drawer_lib.articulation.fronts import refine_with_masks, share_edges
 from drawer_lib.articulation.handles import (describe_handle, handle_candidates, handle_clusters, heaviest,
                                              resolve_stacked_pulls)
 from drawer_lib.articulation.infer import infer_parts
-from drawer_lib.articulation.joints import decide
+from drawer_lib.articulation.decide import decide_by_handle
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.perception.decompose import Segment, face_geometry
@@ -159,7 +159,7 @@ def test_mask_fringe_on_a_neighbour_weighs_less_than_the_fronts_own_pull():
     assert by_count[0].mean(0)[0] > 0.45  # the trap the weights avoid
     assert by_rate[0].mean(0)[0] < 0.05 and by_rate[1].mean(0)[0] > 0.5
     h = describe_handle(left, by_rate[0], "masks", HC)
-    assert h.a_u < 0.1 and decide(h, {}, TypesConfig()).hinge == "right"
+    assert h.a_u < 0.1 and decide_by_handle(h, {}, TypesConfig()).hinge == "right"
     with pytest.raises(ValueError, match="weights"):
         handle_candidates([left, right], pts, HC, 0.015, 3, weights=-w)
     with pytest.raises(ConfigError, match="evidence"):
@@ -187,11 +187,11 @@ def test_a_pull_between_stacked_fronts_goes_to_the_lower_one():
     R = 0.04  # the linkage radius infer_parts uses on a mesh of ~3 cm faces (1.5 x the spacing)
     cands = handle_candidates([upper, lower], pts, cfg, R, 3)
     assert cands[0][0][1] == 75  # the smear is the upper front's heaviest candidate: a "flap"
-    assert decide(describe_handle(upper, cands[0][0][0], "masks", cfg), {}, tc).family == "flap"
+    assert decide_by_handle(describe_handle(upper, cands[0][0][0], "masks", cfg), {}, tc).family == "flap"
     got, gave_up = resolve_stacked_pulls([upper, lower], cands, tc.edge_frac, cfg.max_gap)
     assert gave_up == [(0, 1)]
-    assert decide(describe_handle(upper, got[0], "masks", cfg), {}, tc).family == "drawer"
-    assert decide(describe_handle(lower, got[1], "masks", cfg), {}, tc).family == "drawer"
+    assert decide_by_handle(describe_handle(upper, got[0], "masks", cfg), {}, tc).family == "drawer"
+    assert decide_by_handle(describe_handle(lower, got[1], "masks", cfg), {}, tc).family == "drawer"
     # side by side (no stack), or the upper front with no other candidate: nothing changes
     side = Front((0.75, Y, 0.375), (0, -1, 0), (1, 0, 0), (0.5, 0.25))
     sc = handle_candidates([upper, side], pts, cfg, R, 3)
@@ -204,7 +204,7 @@ def test_a_pull_between_stacked_fronts_goes_to_the_lower_one():
     c3 = handle_candidates([top, upper, lower], three, cfg, R, 3)
     got, gave_up = resolve_stacked_pulls([top, upper, lower], c3, tc.edge_frac, cfg.max_gap)
     assert sorted(gave_up) == [(0, 1), (1, 2)]
-    fam = [decide(describe_handle(f, p, "masks", cfg), {}, tc).family for f, p in zip([top, upper, lower], got)]
+    fam = [decide_by_handle(describe_handle(f, p, "masks", cfg), {}, tc).family for f, p in zip([top, upper, lower], got)]
     assert fam == ["drawer"] * 3, fam
     # vertical bars either side of the gap (a tall door over a door) are two handles
     vbar = lambda z0, z1, n: np.stack([g.uniform(0.46, 0.47, n), np.full(n, Y - 0.03), g.uniform(z0, z1, n)], -1)  # noqa: E731
@@ -298,7 +298,7 @@ def test_carcass_depth_ignores_fronts_above_that_face_the_same_way():
     """A wall cabinet's front above and 0.25 m behind a base front faces like it, but it is not
     the carcass behind it: the depth stays the wall's 0.6 m (it was 0.25 before)."""
     from drawer_lib.articulation.config import JointsConfig
-    from drawer_lib.articulation.joints import carcass_depth
+    from drawer_lib.articulation.probes import carcass_depth
     from drawer_lib.io.parts import Front
 
     wall_cab = box([X0, Y + 0.25, 1.45], [X1, Y + 0.27, 2.15]).subdivide().subdivide()

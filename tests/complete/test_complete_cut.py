@@ -302,7 +302,7 @@ def kitchen():
 def _with_blobs(mesh: trimesh.Trimesh, parts) -> trimesh.Trimesh:
     """``mesh`` plus a 1.5 cm ball of stray geometry (as reconstructions leave) in the middle of
     each part's panel when opened half way: in the part's path, so the cut must remove it."""
-    from drawer_lib.twin.gaussians import joint_motion
+    from drawer_lib.io.parts import joint_motion
 
     blobs = [mesh]
     for p in parts.parts:

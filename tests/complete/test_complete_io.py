@@ -11,7 +11,7 @@ from drawer_lib.complete.io import read_complete, write_complete
 from drawer_lib.errors import InputError
 from drawer_lib.sim.model import PartBody, RigidBody, TwinModel, box_shape, mesh_shape
 from drawer_lib.splat.render import Gaussians
-from drawer_lib.twin.gaussians import load_gaussian_ply
+from drawer_lib.splat.ply import read_gaussian_ply
 
 
 def rot_z(deg):
@@ -38,11 +38,12 @@ def test_round_trip(tmp_path):
     m, gfiles, d = read_complete(out)
     assert [p.id for p in m.parts] == ["door_0"] and [r.id for r in m.rigid] == ["object_0"]
     p = m.parts[0]
-    np.testing.assert_allclose(p.axis_direction, [0, 0, -1]) and np.testing.assert_allclose(p.limits, (0, 1.5))
+    np.testing.assert_allclose(p.axis_direction, [0, 0, -1])
+    np.testing.assert_allclose(p.limits, (0, 1.5))
     np.testing.assert_allclose(m.static_collision[0].rotation, rot_z(20), atol=1e-12)
     np.testing.assert_allclose(m.rigid[0].collision[0].vertices, cup.vertices, atol=1e-6)
     assert d["bodies"][1]["interior"]["depth"] == 0.55 and d["info"] == {"note": 1}
-    r = load_gaussian_ply(gfiles["static"])
+    r = read_gaussian_ply(gfiles["static"])
     torch.testing.assert_close(r.means, gs["static"].means, atol=1e-6, rtol=0)
     assert set(gfiles) == {"static"}  # bodies without Gaussians have none
     m.validate()

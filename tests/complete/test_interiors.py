@@ -360,7 +360,8 @@ def test_gt_interior_depth_on_an_analytic_cabinet():
     pred = door("p", 0.0, 0.6, 0.1, 0.8)
     fit = [build_template(pred, "cabinet", TF, 0.45, CFG.template)]
     rule = drawer_rule_interiors([pred], CFG)
-    rows = interior_depth_error(PartsFile((pred,)), mesh, PartsFile((gt,)), fit, rule, inst)
+    rows = interior_depth_error(PartsFile((pred,)), mesh, PartsFile((gt,)), {x.part_id: (x.template, x.free_depth) for x in fit},
+                                {x.part_id: x.free_depth for x in rule}, inst)
     r = rows["p"]
     assert r["gt"] == "g" and r["fitted"] == pytest.approx(0.43)
     assert r["fitted_error"] == pytest.approx(0.07, abs=2e-3)

@@ -3,6 +3,7 @@ dataclasses without missing or unknown keys, the DVC primary config equals the i
 and dvc.yaml declares params that exist."""
 
 import itertools
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -100,6 +101,13 @@ def test_mesh_config_converts_strictly():
     assert to_tree(to_typed(MeshConfig, cfg.mesh, "mesh")) == OmegaConf.to_container(cfg.mesh)
 
 
+def _param(params: dict, key: str):
+    node = params
+    for k in key.split("."):
+        node = node[k]
+    return node
+
+
 def test_dvc_yaml_params_exist():
     dvc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
     params = yaml.safe_load((ROOT / "params.yaml").read_text())
@@ -108,7 +116,8 @@ def test_dvc_yaml_params_exist():
         for p in body.get("params", []):
             if isinstance(p, dict):
                 (path,) = p
-                assert "${item" in path or (ROOT / path).exists()
+                path = re.sub(r"\$\{(?!item)([a-z_.]+)\}", lambda m: str(_param(params, m.group(1))), path)
+                assert "${item" in path or (ROOT / path).exists(), f"stage {name}: params file {path} is missing"
                 continue
             node = params
             for k in p.split("."):

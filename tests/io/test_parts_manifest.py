@@ -24,7 +24,7 @@ def test_parts_round_trip(tmp_path, exact_capture):
     assert read_parts(tmp_path / "p.json") == p
     raw = json.loads((out / "gt" / "parts.json").read_text())
     assert raw["schema"] == "drawer.parts/1" and raw["units"] == "m" and raw["up"] == [0, 0, 1]
-    for q in raw["parts"]:  # exactly the DESIGN §5 keys (plus a free-form family)
+    for q in raw["parts"]:  # exactly the drawer.parts/1 keys (plus a free-form family)
         keys = {"id", "kind", "instance_id", "family"} | ({"axis", "limits", "front"} if q["kind"] != "rigid" else {"center", "bounds"})
         assert set(q) == keys
     f = parse_parts(doc(DOOR, CUP)).by_id("door_0").front

@@ -1,5 +1,5 @@
 """Marching cubes on analytic SDFs, masks, clean-up and both decimators, grid fields, and the geometry
-metrics (DESIGN §6) on analytic meshes."""
+metrics (docs/formats.md#geometry) on analytic meshes."""
 
 import math
 
@@ -11,7 +11,7 @@ import trimesh
 from drawer_lib.errors import ConfigError, NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.mesh.clean import CleanConfig, clean_mesh, fast_quadric, unit_edge_scale
-from drawer_lib.mesh.extract import crossing_cubes, cube_mask, frustum_mask, grid_field_mesh, seen_crossing_mask, grid_shape, marching_cubes_mesh, refine_levels, sdf_grid
+from drawer_lib.geometry.isosurface import crossing_cubes, cube_mask, frustum_mask, grid_field_mesh, seen_crossing_mask, grid_shape, marching_cubes_mesh, refine_levels, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.sdf.io import GridSDF
 

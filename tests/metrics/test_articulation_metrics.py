@@ -1,4 +1,4 @@
-"""Articulation metrics (DESIGN §6): rectangle IoU in the GT plane, matching with its gates and
+"""Articulation metrics (docs/formats.md): rectangle IoU in the GT plane, matching with its gates and
 ignore boxes, precision / recall, EA-score and its clipping."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Motion EMD (drawer_lib.metrics.motion, DESIGN §6): zero for the GT against itself, the
+"""Motion EMD (drawer_lib.metrics.motion, docs/formats.md#motion-emd): zero for the GT against itself, the
 closed form for a sliding panel whose axis is turned by a small angle in the image plane, the
 assignment against a brute force, interpolation of recorded tracks."""
 

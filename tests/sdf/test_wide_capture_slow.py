@@ -1,6 +1,6 @@
 """Slow (`pytest -m slow`): the neural SDF's default schedule on a capture with 4x kitchen_small's
 pixels (kitchen_wide: a 5 m cabinet run, 320x240 x 75 frames, exact depth) reaches the geometry
-targets of issue 17, mesh F@2cm >= 0.95 and Chamfer-L1 <= 5 mm, within the default step count
+targets, mesh F@2cm >= 0.95 and Chamfer-L1 <= 5 mm, within the default step count
 (the one the 300 s budget is set for; the time itself is reported, not asserted: it depends on
 the machine's load)."""
 

@@ -1,4 +1,4 @@
-"""The MJCF export: names, joints, masses, contacts, files (DESIGN §5b scene.xml)."""
+"""The MJCF export: names, joints, masses, contacts, files (``scene.xml``, docs/formats.md)."""
 
 import dataclasses
 import math

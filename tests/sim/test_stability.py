@@ -1,6 +1,6 @@
 """The stability study's hinge (drawer_lib.sim.stability): the closed form against a fine RK4
 run, each integrator's order of convergence, and the divergences a stiff spring and a heavy
-damper on a light link cause (as measured for issue 19: Euler / implicit / implicitfast are
+damper on a light link cause (as measured: Euler / implicit / implicitfast are
 first order, RK4 fourth; a stiff joint breaks every integrator once w dt > 2; a heavy damper
 breaks RK4 at every timestep while MuJoCo's Euler family integrates damping implicitly)."""
 

@@ -1,5 +1,5 @@
 """The stability study's matrix (drawer_lib.sim.study, drawer_lib.sim.stability_stage): the
-extreme cases find what was measured for issue 19, the choice rule, the remedies, and the
+extreme cases find what was measured, the choice rule, the remedies, and the
 stage's outputs on the tiny analytic kitchen."""
 
 import dataclasses
@@ -15,8 +15,8 @@ from drawer_lib.runner import StageRun
 from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
 from drawer_lib.sim.stability import Hinge
 from drawer_lib.sim.stability_stage import StabilityConfig, read_choice, read_matrix, run_stability
-from drawer_lib.sim.study import (Cell, choose, extreme_cases, hinge_case, reference_trace, remedy, run_cell,
-                                  simulate_case, twin_case)
+from drawer_lib.sim.study import (REMEDY_ARMATURE, REMEDY_DAMPING, Cell, choose, extreme_cases, hinge_case,
+                                  reference_trace, remedy, run_cell, simulate_case, twin_case)
 
 
 @pytest.fixture(scope="module")
@@ -79,12 +79,17 @@ def test_contact_rich_keeps_the_blocks_in_the_drawer(cases):
 
 
 def test_remedies_make_the_stiff_joint_stable(cases):
-    r = remedy(cases["stiff_joint"], "implicitfast", 2e-3)
-    # armature: the period grows with sqrt(I + a) until w dt < 2 (a > k dt^2 / 4 = 0.01 kg·m^2)
-    assert r["armature"] is not None and r["armature"] >= 0.01
-    assert simulate_case(cases["stiff_joint"], "implicitfast", 2e-3, armature=r["armature"]).reason is None
-    # damping: integrated implicitly, it damps the fast mode
-    assert r["damping"] is not None
+    c = cases["stiff_joint"]
+    r = remedy(c, "implicitfast", 2e-3)
+    # each remedy is the smallest value of its grid that makes the case stable: it is stable, and
+    # every smaller value of the grid still diverges
+    for key, grid in (("armature", REMEDY_ARMATURE), ("damping", REMEDY_DAMPING)):
+        assert r[key] in grid, r
+        assert simulate_case(c, "implicitfast", 2e-3, **{key: r[key]}).reason is None, (key, r)
+        assert all(simulate_case(c, "implicitfast", 2e-3, **{key: v}).reason for v in grid if v < r[key]), (key, r)
+    # armature: the period grows with sqrt(I + a) until w dt < 2 (a > k dt^2 / 4 = 0.01 kg·m^2);
+    # damping, integrated implicitly, damps the fast mode
+    assert r["armature"] >= 0.01 and r["damping"] > 0
     # RK4 integrates damping explicitly: no damping in the grid helps it
     assert remedy(cases["stiff_joint"], "rk4", 2e-3)["damping"] is None
 

@@ -160,7 +160,7 @@ def test_tiny_and_huge_faces_are_handled():
 def test_ply_round_trip_in_the_inria_layout(tmp_path):
     import open3d as o3d
 
-    from drawer_lib.splat.ply import gaussian_ply_fields, read_gaussian_ply, write_gaussian_ply, write_face_binding
+    from drawer_lib.splat.ply import gaussian_ply_fields, read_ply_columns, write_gaussian_ply, write_face_binding
     from drawer_lib.splat.render import Gaussians
 
     g = torch.Generator().manual_seed(0)
@@ -169,7 +169,7 @@ def test_ply_round_trip_in_the_inria_layout(tmp_path):
     G = Gaussians(torch.randn(n, 3, generator=g), torch.randn(n, 4, generator=g), torch.rand(n, 3, generator=g) + 0.01,
                   torch.rand(n, generator=g) * 0.9 + 0.05, sh)
     write_gaussian_ply(tmp_path / "g.ply", G)
-    d = read_gaussian_ply(tmp_path / "g.ply")
+    d = read_ply_columns(tmp_path / "g.ply")
     assert list(d) == gaussian_ply_fields(15) and len(d["x"]) == n
     np.testing.assert_allclose(d["f_rest_0"], sh[:, 1, 0].numpy(), rtol=1e-6)  # channel-major rest
     np.testing.assert_allclose(d["f_rest_15"], sh[:, 1, 1].numpy(), rtol=1e-6)

@@ -9,7 +9,7 @@ import pytest
 from helpers import run_stage, scene_paths
 
 from drawer_lib.paths import LAYOUT, capture_name
-from drawer_lib.splat.ply import read_gaussian_ply
+from drawer_lib.splat.ply import read_ply_columns
 
 FAST = ["appearance.steps=12", "appearance.eval_every=6", "appearance.max_faces=4000", "appearance.texture_cell=0.03",
         "appearance.texture_source=images", "appearance.strategy.refine_start=4", "appearance.strategy.refine_every=4",
@@ -46,7 +46,7 @@ def test_variants_run_and_write_their_outputs(project, variant):
         return
     assert m["within_face_bounds"] is True and m["n_gaussians"] > 0
     assert 0.0 <= m["at_bound_any"] <= 1.0 and set(m) >= {"at_bound_position", "at_bound_tilt"}
-    ply = read_gaussian_ply(d / "model" / "gaussians.ply")
+    ply = read_ply_columns(d / "model" / "gaussians.ply")
     assert len(ply["x"]) == m["n_gaussians"] and np.all(np.isfinite(ply["opacity"]))
     b = np.load(d / "model" / "binding.npz")
     assert len(b["mesh_face"]) == m["n_gaussians"]

@@ -3,17 +3,16 @@
 import numpy as np
 import pytest
 import torch
-
 from helpers import quat_to_rot
 
 from drawer_lib.errors import InputError
-from drawer_lib.io.parts import Axis, Front, Part
-from drawer_lib.splat.ply import write_gaussian_ply
-from drawer_lib.splat.render import Gaussians
-from drawer_lib.splat.sh import sh_to_color
 from drawer_lib.geometry.rotations import matrix_to_quat as rotmat_to_quat
 from drawer_lib.geometry.rotations import quat_mul
-from drawer_lib.twin.gaussians import joint_motion, load_gaussian_ply, sh_rotation, transform
+from drawer_lib.io.parts import Axis, Front, Part, joint_motion
+from drawer_lib.splat.gaussians import sh_rotation, transform
+from drawer_lib.splat.ply import read_gaussian_ply, write_gaussian_ply
+from drawer_lib.splat.render import Gaussians
+from drawer_lib.splat.sh import sh_to_color
 
 
 def random_rotation(rng):
@@ -69,12 +68,12 @@ def test_ply_round_trip(tmp_path):
     g = Gaussians(*(x.float() for x in (g.means, g.quats / g.quats.norm(dim=-1, keepdim=True), g.scales,
                                          g.opacities.clamp(0.01, 0.99), g.sh)))
     write_gaussian_ply(tmp_path / "g.ply", g)
-    r = load_gaussian_ply(tmp_path / "g.ply")
+    r = read_gaussian_ply(tmp_path / "g.ply")
     for k in ("means", "quats", "scales", "opacities", "sh"):
         torch.testing.assert_close(getattr(r, k), getattr(g, k), atol=2e-6, rtol=1e-5)
     (tmp_path / "bad.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nend_header\n")
     with pytest.raises(InputError, match="bad.ply"):
-        load_gaussian_ply(tmp_path / "bad.ply")
+        read_gaussian_ply(tmp_path / "bad.ply")
 
 
 def test_joint_motion_of_a_door_and_a_drawer():

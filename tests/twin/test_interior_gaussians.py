@@ -11,7 +11,7 @@ from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera, Intrinsics, invert_rigid, look_at_opencv
 from drawer_lib.splat.render import render
 from drawer_lib.splat.sh import sh_to_color
-from drawer_lib.twin.interior_gaussians import box_faces, box_surface_gaussians
+from drawer_lib.splat.gaussians import box_faces, box_surface_gaussians
 
 
 def rot_z(deg):

@@ -23,9 +23,9 @@ from drawer_lib.io.capture import load_capture  # noqa: E402
 from drawer_lib.io.parts import write_parts  # noqa: E402
 from drawer_lib.runner import StageRun  # noqa: E402
 from drawer_lib.sim.model import PartBody, TwinModel  # noqa: E402
+from drawer_lib.splat.gaussians import box_surface_gaussians, concat  # noqa: E402
+from drawer_lib.splat.ply import read_gaussian_ply  # noqa: E402
 from drawer_lib.twin.config import RendersConfig, TwinConfig  # noqa: E402
-from drawer_lib.twin.gaussians import concat, load_gaussian_ply  # noqa: E402
-from drawer_lib.twin.interior_gaussians import box_surface_gaussians  # noqa: E402
 from drawer_lib.twin.pipeline import run_twin  # noqa: E402
 from drawer_lib.viewer.scene import load_twin_scene  # noqa: E402
 
@@ -71,13 +71,13 @@ def test_the_twin_folder_holds_every_export(built):
     checks = json.loads((t / "checks.json").read_text())
     assert checks and m["check_s"] > 0
     # the per-body PLYs are the complete/ Gaussians, together as many as went in
-    n = sum(len(load_gaussian_ply(t / "gaussians" / f"{k}.ply").means) for k in gs)
+    n = sum(len(read_gaussian_ply(t / "gaussians" / f"{k}.ply").means) for k in gs)
     assert n == m["n_gaussians"] == sum(len(g.means) for g in gs.values())
     # a third-party PLY parser (trimesh's) reads the INRIA layout: positions and every 3DGS field
     pc = trimesh.load(t / "gaussians" / "static.ply")
     names = pc.metadata["_ply_raw"]["vertex"]["data"].dtype.names
     assert {"f_dc_0", "opacity", "scale_0", "rot_0", "f_rest_44"} <= set(names)
-    np.testing.assert_allclose(pc.vertices, load_gaussian_ply(t / "gaussians" / "static.ply").means.numpy(), atol=1e-6)
+    np.testing.assert_allclose(pc.vertices, read_gaussian_ply(t / "gaussians" / "static.ply").means.numpy(), atol=1e-6)
 
 
 def test_every_file_twin_json_names_is_in_the_twin_folder_and_the_viewer_opens_it(built):

@@ -9,7 +9,7 @@ from drawer_lib.complete.pipeline import cull_visible_interiors
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.splat.render import Gaussians, render
 from drawer_lib.splat.sh import C0
-from drawer_lib.twin.gaussians import blend_weights, subset
+from drawer_lib.splat.gaussians import blend_weights, subset
 
 W, H = 32, 24
 CAM = Camera(Intrinsics(30.0, 30.0, W / 2, H / 2, W, H), np.eye(4))  # OpenCV: looks down +z

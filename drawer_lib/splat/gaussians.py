@@ -1,6 +1,7 @@
-"""Gaussians of a twin's bodies: read an INRIA-layout PLY back into :class:`Gaussians`, move a
-set rigidly (means, orientations and the view-dependent colour), and the rigid motion of a
-part's joint at ``q``.
+"""Operations on sets of Gaussians (:class:`~drawer_lib.splat.render.Gaussians`, activated,
+world frame): subsets and concatenation, each Gaussian's blend weight in a view, rigid motion
+(means, orientations and the view-dependent colour), and flat Gaussians covering the faces of a
+box (the interiors' walls).
 
 Moving Gaussians by a rotation R: means -> R m + t, orientations -> q_R * q, and the SH colour
 c(d) -> c(R^T d), i.e. every degree-l band of the coefficients is multiplied by a (2l+1)^2
@@ -8,9 +9,15 @@ matrix. That matrix is found without Wigner formulas: the degree-l real SH span 
 rotations map to itself, so evaluating the basis at enough directions d_i and at R^T d_i and
 solving ``Y(R^T d) = Y(d) D`` in least squares gives D exactly (up to float error);
 :func:`sh_rotation` is tested against the definition c'(R d) = c(d).
-"""
 
-from pathlib import Path
+Box surfaces (:func:`box_surface_gaussians`): the walls of the interiors (drawer boxes, cabinet
+cavities, shelves) that no capture saw, covered by flat Gaussians initialised from the interior
+texture, so a twin still looks like a cabinet when a part is open (DRAWER merges textured
+interior meshes into its Gaussians the same way). Each face of a box gets a regular grid of
+flat Gaussians (spacing ``spacing``; in-plane standard deviation 0.6 x spacing, so neighbours
+overlap into a closed surface; 0.5 mm along the face normal), opacity ``opacity``,
+view-independent colour (SH degree-0 coefficient (c - 0.5) / C0; higher coefficients zero).
+"""
 
 import numpy as np
 import torch
@@ -19,30 +26,13 @@ from torch import Tensor
 
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera
-from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_mul
-from drawer_lib.io.parts import Part
-from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.splat.project import project_gaussians_fused
 from drawer_lib.splat.rasterize import composite
 from drawer_lib.splat.render import Gaussians
-from drawer_lib.splat.sh import sh_to_color
+from drawer_lib.splat.sh import C0, sh_to_color
 
-
-def load_gaussian_ply(path: Path) -> Gaussians:
-    """The activated Gaussians of an INRIA-layout PLY (:func:`drawer_lib.splat.ply.write_gaussian_ply`)."""
-    c = read_gaussian_ply(path)
-    need = {"x", "y", "z", "f_dc_0", "opacity", "scale_0", "rot_0"}
-    if not need <= set(c):
-        raise InputError(f"{path}: not a Gaussian PLY (missing {sorted(need - set(c))})")
-    n = len(c["x"])
-    k_rest = sum(k.startswith("f_rest_") for k in c) // 3
-    t = lambda *ks: torch.from_numpy(np.stack([c[k] for k in ks], -1).astype(np.float32))  # noqa: E731
-    rest = (t(*[f"f_rest_{i}" for i in range(3 * k_rest)]).view(n, 3, k_rest).transpose(1, 2)
-            if k_rest else torch.zeros(n, 0, 3))
-    sh = torch.cat([t("f_dc_0", "f_dc_1", "f_dc_2")[:, None], rest], 1)
-    return Gaussians(t("x", "y", "z"), t("rot_0", "rot_1", "rot_2", "rot_3"), torch.exp(t("scale_0", "scale_1", "scale_2")),
-                     torch.sigmoid(torch.from_numpy(c["opacity"].astype(np.float32))), sh)
+THIN = 5e-4  # m, a box-surface Gaussian's extent along the face normal
 
 
 def subset(g: Gaussians, idx: Tensor | np.ndarray) -> Gaussians:
@@ -121,14 +111,50 @@ def transform(g: Gaussians, R: Float[np.ndarray, "3 3"], t: Float[np.ndarray, "3
     return Gaussians(means, quats, g.scales, g.opacities, sh)
 
 
-def joint_motion(part: Part, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """(R [3, 3], t [3]) of the part's body at joint value ``q`` (rad or m)
-    (:func:`drawer_lib.geometry.joints.joint_transform`; DESIGN §5: positive q opens); an
-    unusable axis or q is an error naming the part."""
-    if not part.articulated:
-        raise InputError(f"part {part.id}: {part.kind} parts have no joint")
-    a = np.asarray(part.axis.direction, np.float64)
-    if not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-9 or not np.isfinite(q):
-        raise InputError(f"part {part.id}: axis direction {part.axis.direction} or q = {q} is not usable")
-    T = joint_transform(part.kind, np.asarray(part.axis.origin, np.float64), a, q)
-    return T[:3, :3], T[:3, 3]
+def box_faces(center: Float[np.ndarray, "3"], rotation: Float[np.ndarray, "3 3"], half: Float[np.ndarray, "3"]
+              ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """The 6 faces of an oriented box as (centre [3], outward normal [3], in-plane axes [2, 3],
+    in-plane half extents [2]); ``rotation``'s columns are the box axes, ``half`` in metres."""
+    R, h = np.asarray(rotation, np.float64), np.asarray(half, np.float64)
+    out = []
+    for ax in range(3):
+        a, b = [k for k in range(3) if k != ax]
+        for s in (1.0, -1.0):
+            n = s * R[:, ax]
+            out.append((np.asarray(center, np.float64) + n * h[ax], n, np.stack([R[:, a], R[:, b]]), h[[a, b]]))
+    return out
+
+
+def box_surface_gaussians(center: Float[np.ndarray, "3"], rotation: Float[np.ndarray, "3 3"], half: Float[np.ndarray, "3"],
+                          color: Float[np.ndarray, "3"], spacing: float = 0.02, opacity: float = 0.95, sh_degree: int = 3,
+                          shade=None, toward: Float[np.ndarray, "3"] | None = None) -> Gaussians:
+    """Flat Gaussians covering the faces of one oriented box (see the module docstring).
+    ``color``: RGB in [0, 1]; ``shade(points [M, 3]) -> [M]`` an optional factor in [0, 1]
+    per Gaussian (e.g. darker deeper inside a cabinet); ``toward``: cover only the faces whose
+    outward normal points toward this point (a wall's inner faces, seen from inside its cavity:
+    its outer faces lie in or outside the carcass, where they would show through)."""
+    if not spacing > 0 or not np.all(np.isfinite(half)) or np.any(np.asarray(half) < 0):
+        raise InputError(f"box_surface_gaussians: spacing {spacing} or half extents {half} not usable")
+    means, quats, scales = [], [], []
+    for c, n, ab, hab in box_faces(center, rotation, half):
+        if np.any(hab <= 0) or (toward is not None and float(n @ (np.asarray(toward, np.float64) - c)) <= 0):
+            continue
+        nu, nv = (np.maximum(np.ceil(2 * hab / spacing), 1)).astype(int)
+        su, sv = (np.arange(nu) + 0.5) / nu * 2 - 1, (np.arange(nv) + 0.5) / nv * 2 - 1
+        uu, vv = np.meshgrid(su * hab[0], sv * hab[1], indexing="ij")
+        p = c + uu.reshape(-1, 1) * ab[0] + vv.reshape(-1, 1) * ab[1]
+        Rf = np.stack([ab[0], np.cross(n, ab[0]), n], 1)  # frame: x, y in the face, z = normal
+        means.append(p)
+        quats.append(np.broadcast_to(matrix_to_quat(Rf), (len(p), 4)))
+        scales.append(np.broadcast_to([0.6 * 2 * hab[0] / nu, 0.6 * 2 * hab[1] / nv, THIN], (len(p), 3)))
+    K = (sh_degree + 1) ** 2
+    if not means:
+        return Gaussians(torch.zeros(0, 3), torch.zeros(0, 4), torch.zeros(0, 3), torch.zeros(0), torch.zeros(0, K, 3))
+    m = np.concatenate(means)
+    col = np.broadcast_to(np.clip(np.asarray(color, np.float64), 0, 1), (len(m), 3)).copy()
+    if shade is not None:
+        col *= np.clip(np.asarray(shade(m), np.float64), 0, 1)[:, None]
+    sh = np.zeros((len(m), K, 3))
+    sh[:, 0] = (col - 0.5) / C0
+    f = lambda x: torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))  # noqa: E731
+    return Gaussians(f(m), f(np.concatenate(quats)), f(np.concatenate(scales)), torch.full((len(m),), float(opacity)), f(sh))

@@ -1,0 +1,93 @@
+"""Mesh probes: what the reconstructed mesh shows around a front, measured on points sampled
+on it (each with its face normal). The depth of the cabinet behind a front, how far a
+neighbouring front lies behind it, and the track a sliding door runs on. Lengths in metres;
+a front's frame is (``u``, ``v`` = normal x u, ``normal``) about the centre of its outer face
+(:class:`~drawer_lib.io.parts.Front`)."""
+
+import numpy as np
+
+from drawer_lib.articulation.config import JointsConfig
+from drawer_lib.io.parts import Front
+
+
+def carcass_depth(front: Front, mesh_points: np.ndarray, mesh_normals: np.ndarray, cfg: JointsConfig) -> float | None:
+    """Depth of the cabinet behind a front as the mesh shows it: a low percentile of the
+    distances of the points facing the same way as the front (a wall or back panel) behind it,
+    within the front's rectangle (its u- and v-range: the fronts of the wall cabinets above a
+    base cabinet face the same way but are not behind it); None when the mesh shows too few."""
+    c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
+    rel = mesh_points - c
+    d = -(rel @ n)
+    sel = ((d > cfg.carcass_min_depth) & (d < cfg.carcass_max_depth) & (np.abs(rel @ u) < front.size[0] / 2)
+           & (np.abs(rel @ front.v) < front.size[1] / 2) & ((mesh_normals @ n) > cfg.carcass_normal_cos))
+    if sel.sum() < cfg.carcass_min_points:
+        return None
+    return float(np.percentile(d[sel], cfg.carcass_percentile))
+
+
+def local_step(fa: Front, fb: Front, pa: np.ndarray, pb: np.ndarray, band: float) -> float:
+    """How far front b lies behind front a (m), measured on the segments' own points within
+    ``band`` of the line between them along the mean normal — not from the two centres, whose
+    lateral distance times a degree of plane-fit tilt would fake a step."""
+    n = np.asarray(fa.normal) + np.asarray(fb.normal)
+    n /= np.linalg.norm(n)
+    u = np.asarray(fa.u)
+    ca, cb = np.asarray(fa.center), np.asarray(fb.center)
+    mid = ca + u * np.sign((cb - ca) @ u) * fa.size[0] / 2  # a's edge facing b
+    near_a = pa[np.abs((pa - mid) @ u) < band]
+    near_b = pb[np.abs((pb - mid) @ u) < band]
+    if len(near_a) < 3 or len(near_b) < 3:
+        return float((ca - cb) @ n)
+    return float(np.median(near_a @ n) - np.median(near_b @ n))
+
+
+def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> float:
+    """The track's length along the front in units of its width (0: none; :func:`rail_run`)."""
+    run = rail_run(front, points, normals, band)
+    return 0.0 if run is None else float((run[1] - run[0]) / max(front.size[0], 1e-6))
+
+
+def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> tuple[float, float] | None:
+    """How far a track runs along the front's top or bottom edge: the unbroken run (2 cm bins
+    along u, through the front's middle, at least 90 % of its width) of the mesh ``points``
+    [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7 with the front's normal), lie
+    within ``band`` beyond that edge and 0.4 to 4 cm in front of the front's plane (proud of it:
+    coplanar neighbours are not a track), divided by the front's width; the larger of the two
+    edges.
+    An edge with a horizontal surface reaching more than 10 cm behind the plane there across
+    half the front's width or more (a counter top, a shelf) has no track. Returns the longer edge's run as (lo, hi) along u from
+    the front's centre (m), or None when no edge has one (fewer than 20 points qualify, or the
+    run is broken within the front's width)."""
+    c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
+    v = front.v
+    rel = points - c
+    pu, pv, pn = rel @ u, rel @ v, rel @ n
+    hw, hh = front.size[0] / 2, front.size[1] / 2
+    near_u = np.abs(pu) < 2.0 * hw
+    facing = normals @ n > 0.7
+    flat = np.abs(normals[:, 2]) > 0.7
+    best: tuple[float, float] | None = None
+    for sgn in (1.0, -1.0):
+        beyond = sgn * pv - hh
+        in_band = near_u & (beyond > 0.0) & (beyond < band)
+        deep = in_band & flat & (pn < -0.1)
+        if deep.sum() >= 20 and np.ptp(pu[deep]) > hw:  # a counter top or a shelf across it, not a track
+            continue
+        sel = in_band & facing & (pn > 0.004) & (pn < 0.04)
+        if sel.sum() < 20:
+            continue
+        # the unbroken run of 2 cm bins along u holding such points, through the front's middle:
+        # a track spans the front, handles and neighbours' pulls leave gaps
+        bins = np.floor((pu[sel] + 2.0 * hw) / 0.02).astype(np.int64)
+        occ = np.zeros(int(np.ceil(4.0 * hw / 0.02)) + 1, bool)
+        occ[np.clip(bins, 0, len(occ) - 1)] = True
+        occ[1:-1] |= occ[:-2] & occ[2:]  # a single empty bin between two full ones is sampling, not a gap
+        mid = int((2.0 * hw) / 0.02)
+        if not occ[mid]:
+            continue
+        lo = mid - int(np.argmin(occ[mid::-1])) + 1 if not occ[: mid + 1].all() else 0
+        hi = mid + int(np.argmin(occ[mid:])) if not occ[mid:].all() else len(occ)
+        run = (lo * 0.02 - 2.0 * hw, hi * 0.02 - 2.0 * hw)
+        if run[1] - run[0] >= 0.9 * 2 * hw and (best is None or run[1] - run[0] > best[1] - best[0]):
+            best = run
+    return best

@@ -1,0 +1,59 @@
+"""Config of the articulation benchmark (conf/bench/default.yaml): which kitchens, which sensors
+and geometry they are built with, and how the decision weights are fitted."""
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from drawer_lib.errors import ConfigError
+from drawer_lib.synth.splits import SPLITS
+
+GEOMETRY_KEYS = ("chamfer_l1", "fscore_1cm", "fscore_2cm")  # a kitchen's mesh against its GT (its metrics.json)
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """The fit of the decision weights (:mod:`drawer_lib.bench.fit`): the L2 penalties tried
+    (``lambdas``), ``folds`` of leave-kitchens-out cross-validation, and ``min_examples``:
+    a hypothesis with fewer train fronts gets only its bias fitted (the rest: the prior)."""
+
+    lambdas: list[float] = field(default_factory=lambda: [1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1])
+    folds: int = 5
+    min_examples: int = 10
+
+    def __post_init__(self):
+        if not self.lambdas or any(not lam >= 0 for lam in self.lambdas):
+            raise ConfigError(f"bench.fit.lambdas = {self.lambdas}: need at least one penalty >= 0")
+        if self.folds < 2:
+            raise ConfigError(f"bench.fit.folds = {self.folds} must be >= 2")
+        if self.min_examples < 0:
+            raise ConfigError(f"bench.fit.min_examples = {self.min_examples} must be >= 0")
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """The benchmark: kitchen ``k`` of every split in ``splits`` for each ``k`` in ``kitchens``
+    (:func:`drawer_lib.synth.splits.split_synth`: the split's sizes, styles and counts over the
+    scene ``base_scene``), captured with the sensors ``detections`` / ``depth``
+    (conf/capture/<group>/<name>.yaml) and the geometry ``sdf`` (conf/sdf/<name>.yaml); the
+    pipeline's mesh, decompose and articulate configs. dvc.yaml passes these choices to the
+    ``bench_kitchen`` stage as Hydra overrides; the stage checks that it got them. ``camera``:
+    keys of the synth camera block set over the split's (null: the split's own frames; smoke
+    tests and the ``quick`` experiment shrink them)."""
+
+    kitchens: list[int] = field(default_factory=lambda: list(range(20)))
+    splits: list[str] = field(default_factory=lambda: list(SPLITS))
+    base_scene: str = "kitchen_small"
+    detections: str = "noisy_generic"
+    depth: str = "sensor"
+    sdf: str = "tsdf"
+    camera: dict[str, Any] | None = None
+    fit: FitConfig = field(default_factory=FitConfig)
+
+    def __post_init__(self):
+        if not self.kitchens or any(isinstance(k, bool) or not isinstance(k, int) or k < 0 for k in self.kitchens):
+            raise ConfigError(f"bench.kitchens = {self.kitchens}: need a list of kitchen indices >= 0")
+        if len(set(self.kitchens)) != len(self.kitchens):
+            raise ConfigError(f"bench.kitchens = {self.kitchens} lists a kitchen twice")
+        if "train" not in self.splits or any(s not in SPLITS for s in self.splits):
+            raise ConfigError(f"bench.splits = {self.splits}: splits of {SPLITS}, the train split among them "
+                              "(the decision weights are fitted on it)")

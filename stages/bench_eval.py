@@ -1,0 +1,39 @@
+"""DVC stage ``bench_eval@<split>``: every kitchen of a benchmark split articulated with the
+fitted decision weights and scored, with its articulation by the prior weights, against its
+ground truth -> ``<paths.bench>/eval/<split>/`` (``table.md``, ``rows.json``, ``metrics.json``;
+``kitchen_<k>/articulate/``).
+
+    python -m stages.bench_eval -cn dvc_stage +bench_split=test
+"""
+
+from pathlib import Path
+
+import hydra
+from omegaconf import DictConfig
+
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.weights import resolve_weights
+from drawer_lib.bench.config import BenchConfig
+from drawer_lib.bench.evaluate import run_eval
+from drawer_lib.config.typed import to_typed
+from drawer_lib.errors import ConfigError
+from drawer_lib.paths import BenchPaths
+from drawer_lib.runner import main_guard, stage_run
+
+
+@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+@main_guard
+def main(cfg: DictConfig) -> None:
+    bc = to_typed(BenchConfig, cfg.bench, "bench")
+    ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
+    split = cfg.get("bench_split")
+    if split not in bc.splits:
+        raise ConfigError(f"bench_eval: pass +bench_split=<one of {bc.splits}>, got {split!r}")
+    bench = BenchPaths(Path(cfg.paths.bench))
+    weights = resolve_weights(ac.types, bench.weights)
+    with stage_run("bench_eval", bench.eval(split), seed=cfg.seed) as run:
+        run.metrics.update(run_eval(split, bc.kitchens, bench, ac, weights, run))
+
+
+if __name__ == "__main__":
+    main()
