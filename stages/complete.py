@@ -15,6 +15,7 @@ from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.runner import main_guard, stage_run
+from drawer_lib.sim.config import DensityConfig
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
@@ -22,7 +23,7 @@ from drawer_lib.runner import main_guard, stage_run
 def main(cfg: DictConfig) -> None:
     scene = scene_name(cfg)
     cc = to_typed(CompleteConfig, cfg.complete, "complete")
-    density = float(cfg.twin.sim.densities.part)
+    density = to_typed(DensityConfig, cfg.sim.densities, "sim.densities").part
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture, check_files=False)
     inp = CompleteInputs(src.parts, src.mesh, src.decompose, src.field,

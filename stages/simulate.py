@@ -12,7 +12,7 @@ from omegaconf import DictConfig
 from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.runner import main_guard, stage_run
-from drawer_lib.sim.pipeline import SimulateConfig, run_simulate
+from drawer_lib.simulate.pipeline import SimulateConfig, run_simulate
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")

@@ -16,6 +16,7 @@ from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.runner import main_guard, stage_run
+from drawer_lib.sim.config import SimConfig
 from drawer_lib.twin.config import TwinConfig
 from drawer_lib.twin.pipeline import run_twin
 
@@ -25,12 +26,13 @@ from drawer_lib.twin.pipeline import run_twin
 def main(cfg: DictConfig) -> None:
     scene = scene_name(cfg)
     tc = to_typed(TwinConfig, cfg.twin, "twin")
+    sim = to_typed(SimConfig, cfg.sim, "sim")
     sc = to_typed(SceneConfig, cfg.scene, f"conf/scene/{scene}.yaml:", strict=False)
     render = to_typed(CaptureConfig, cfg.capture, "capture").render
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture, check_files=False)
     with stage_run("twin", dst.stage_dir("twin"), seed=cfg.seed) as run:
-        run.metrics.update(run_twin(tc, cap, src.parts, src.stage_dir("complete"), run, sc, render))
+        run.metrics.update(run_twin(tc, sim, cap, src.parts, src.stage_dir("complete"), run, sc, render))
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ from drawer_lib.report.dashboard import SECTIONS, collect, render
 from drawer_lib.report.pareto import DIR as PARETO_DIR
 from drawer_lib.report.pareto import LOWER_IS_BETTER, Point, pareto_front
 from drawer_lib.report.extremes import ROWS, _junit, run_extremes
-from drawer_lib.sim.stability_stage import heatmap, write_matrix
+from drawer_lib.stability.pipeline import heatmap, write_matrix
 from drawer_lib.viewer.browser import HeadlessChromium, chromium_binary
 
 SCENE = "tiny"

@@ -58,8 +58,8 @@ from drawer_lib.complete.interiors_config import (
 from drawer_lib.errors import ConfigError, NonFiniteError
 from drawer_lib.io.parts import Front, Part
 
-try:  # the simulator's shape type (drawer_lib/sim/model.py), when present
-    from drawer_lib.sim.model import Shape
+try:  # the simulator's shape type (drawer_lib/bodies.py), when present
+    from drawer_lib.bodies import Shape
 except ImportError:  # pragma: no cover - written against the same contract
 
     @dataclass(frozen=True)

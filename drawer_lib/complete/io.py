@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 from drawer_lib.errors import InputError
-from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
+from drawer_lib.bodies import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
 from drawer_lib.splat.ply import write_gaussian_ply
 from drawer_lib.splat.render import Gaussians
 

@@ -48,7 +48,7 @@ from drawer_lib.io.mesh import load_mesh
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
-from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
+from drawer_lib.bodies import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
 from drawer_lib.splat.gaussians import blend_weights, box_surface_gaussians, concat, subset
 from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.splat.render import Gaussians

@@ -31,7 +31,7 @@ from drawer_lib.complete.config import RigidConfig
 from drawer_lib.complete.cut import submesh
 from drawer_lib.errors import InputError
 from drawer_lib.io.parts import Part, PartsFile
-from drawer_lib.sim.model import Shape, convex_pieces, mesh_shape
+from drawer_lib.bodies import Shape, convex_pieces, mesh_shape
 
 _MERGE = 1e-7  # m: vertices closer than this are one
 

@@ -33,7 +33,7 @@ from scipy import ndimage
 from drawer_lib.complete.config import StaticCollisionConfig
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.sampling import sample_triangles
-from drawer_lib.sim.model import Shape, box_shape
+from drawer_lib.bodies import Shape, box_shape
 
 
 # ----------------------------------------------------------------------------------- the frame

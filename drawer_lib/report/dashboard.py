@@ -74,7 +74,7 @@ def collect(out: Path, reports: Path, scenes: list[str], geometry_variants: list
             appearance_variants: list[str], extremes: list[dict] | None, extremes_skip: str | None = None
             ) -> ReportData:
     """Everything the report shows (module doc)."""
-    from drawer_lib.sim.stability_stage import read_matrix
+    from drawer_lib.stability.pipeline import read_matrix
 
     data = ReportData([], _json(Path(reports) / "geometry" / LAYOUT["report"]["table_json"]),
                       _json(Path(reports) / "ablation" / LAYOUT["report"]["table_json"]), extremes)

@@ -24,7 +24,8 @@ import numpy as np
 
 from drawer_lib.errors import InputError, NonFiniteError, TwinCheckError
 from drawer_lib.sim.mjcf import GROUP_COLLISION, STATIC, part_index
-from drawer_lib.sim.model import PartBody, SimConfig, TwinModel
+from drawer_lib.bodies import PartBody, TwinModel
+from drawer_lib.sim.config import SimConfig
 
 _UNIT = {"revolute": "rad", "prismatic": "m"}
 _NONFINITE_WARNINGS = {mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,

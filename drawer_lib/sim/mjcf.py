@@ -14,7 +14,7 @@ Decisions:
   digits, in the body frame), referenced through ``<compiler meshdir="assets">``; the spec
   carries them in ``spec.assets`` so it compiles in memory, and :func:`write_mjcf` writes them
   next to ``scene.xml``. A collision mesh is written as its convex hull (what MuJoCo collides).
-* Masses and inertias: explicit ``<inertial>`` per body from :func:`drawer_lib.sim.model.
+* Masses and inertias: explicit ``<inertial>`` per body from :func:`drawer_lib.bodies.
   mass_properties` (collision solids x density; ``inertiafromgeom="false"``), the same numbers
   the URDF and USD get.
 * Contacts by ``contype`` / ``conaffinity`` bits (static 1, part 2, rigid 4): rigid objects
@@ -39,7 +39,8 @@ import numpy as np
 
 from drawer_lib.errors import InputError, InvariantError
 from drawer_lib.sim.files import obj_bytes, shortest, write_entries_atomic
-from drawer_lib.sim.model import MassProps, PartBody, Shape, SimConfig, TwinModel, axis_inertia
+from drawer_lib.bodies import MassProps, PartBody, Shape, TwinModel, axis_inertia
+from drawer_lib.sim.config import SimConfig
 
 STATIC = "static"
 MESHDIR = "assets"
@@ -106,7 +107,7 @@ def _set_inertial(body: mujoco.MjsBody, props: MassProps, frame_origin: np.ndarr
 
 def drive_gain(part: PartBody, cfg: SimConfig, props: MassProps | None = None) -> float:
     """``kv`` of a part's velocity servo (N·m·s/rad or N·s/m): (inertia about its joint +
-    armature) / drive_tau, see :class:`drawer_lib.sim.model.JointConfig`."""
+    armature) / drive_tau, see :class:`drawer_lib.bodies.JointConfig`."""
     props = props or part.mass_properties()
     jc = cfg.joint(part.kind)
     return (axis_inertia(props, part.kind, part.axis_origin, part.unit_axis) + jc.armature) / jc.drive_tau

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from drawer_lib.sim.files import obj_bytes, shortest, write_entries_atomic
-from drawer_lib.sim.model import MassProps, Shape, SimConfig, TwinModel
+from drawer_lib.bodies import MassProps, Shape, TwinModel
+from drawer_lib.sim.config import SimConfig
 
 URDF_DIR = "urdf"
 URDF_FILE = "scene.urdf"

@@ -1,10 +1,10 @@
-"""Config of the ``twin`` stage (conf/twin/default.yaml): the simulation model and its checks
-(:class:`drawer_lib.sim.model.SimConfig`) and the opened-state renders."""
+"""Config of the ``twin`` stage (conf/twin/default.yaml): whether the physical checks run, the
+opened-state renders and the shareable recording. The simulation model and its checks are the
+``sim`` group (:class:`drawer_lib.sim.config.SimConfig`)."""
 
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.sim.model import SimConfig
 from drawer_lib.viewer.config import RecordConfig
 
 
@@ -34,10 +34,9 @@ class RendersConfig:
 @dataclass(frozen=True)
 class TwinConfig:
     """``check``: run the physical checks before writing (a failing check is an error naming the
-    part); ``renders``: the opened-state renders; ``sim``: the MuJoCo model; ``recording``: the
-    shareable browser recording of every part opened in turn (``open_parts.html``)."""
+    part); ``renders``: the opened-state renders; ``recording``: the shareable browser recording
+    of every part opened in turn (``open_parts.html``)."""
 
     check: bool = True
-    sim: SimConfig = field(default_factory=SimConfig)
     renders: RendersConfig = field(default_factory=RendersConfig)
     recording: RecordConfig = field(default_factory=RecordConfig)

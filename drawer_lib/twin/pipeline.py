@@ -2,7 +2,7 @@
 ``drawer.twin/1`` (docs/formats.md).
 
 1. the bodies of ``complete/`` (static scene, articulated parts, rigid objects) as a
-   :class:`~drawer_lib.sim.model.TwinModel`, validated;
+   :class:`~drawer_lib.bodies.TwinModel`, validated;
 2. ``scene.xml`` (+ ``assets/``) built with ``MjSpec``, compiled and checked before anything is
    written (every drive opens its part, a person's pull opens it, the limits hold, nothing
    penetrates, rigid objects rest, no NaN or MuJoCo warning; :func:`drawer_lib.sim.checks.
@@ -47,6 +47,7 @@ from drawer_lib.sim.urdf import write_urdf
 from drawer_lib.sim.usd import write_usd
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.synth.config import RenderConfig
+from drawer_lib.sim.config import SimConfig
 from drawer_lib.twin.config import TwinConfig
 from drawer_lib.splat.gaussians import concat
 from drawer_lib.splat.ply import read_gaussian_ply
@@ -98,9 +99,10 @@ def _tile(img: np.ndarray, width: int) -> np.ndarray:
     return np.asarray(Image.fromarray(img).resize((width, h), Image.BILINEAR))
 
 
-def run_twin(cfg: TwinConfig, cap: Capture, parts_path: Path, complete_dir: Path, run: StageRun,
+def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, complete_dir: Path, run: StageRun,
              scene: SceneConfig | None = None, render_cfg: RenderConfig | None = None) -> dict:
-    """Build, check and write the twin (see the module doc); ``scene``: the scene config, whose
+    """Build, check and write the twin (see the module doc) with the simulation config ``sim``;
+    ``scene``: the scene config, whose
     ``synth`` block (synthetic scenes only) gives the opened-state reference, rendered with
     ``render_cfg`` (the capture's ``capture.render``, so that it equals the capture at q = 0)."""
     if not parts_path.is_file():
@@ -119,13 +121,13 @@ def run_twin(cfg: TwinConfig, cap: Capture, parts_path: Path, complete_dir: Path
 
     # 1-2: MJCF, compiled and checked before anything else is written
     t0 = time.perf_counter()
-    spec = build_spec(model, cfg.sim)
+    spec = build_spec(model, sim)
     compile_spec(spec)
     m["build_s"] = round(time.perf_counter() - t0, 3)
     write_mjcf(spec, out)
     if cfg.check:
         t0 = time.perf_counter()
-        rep = check_twin(out / "scene.xml", model, cfg.sim)
+        rep = check_twin(out / "scene.xml", model, sim)
         m["check_s"] = round(time.perf_counter() - t0, 3)
         m.update({f"sim_{k}": v for k, v in rep.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
         write_json(out / "checks.json", rep)
@@ -133,8 +135,8 @@ def run_twin(cfg: TwinConfig, cap: Capture, parts_path: Path, complete_dir: Path
         run.skip("checks", "twin.check = false")
     # 3: URDF, USD
     t0 = time.perf_counter()
-    write_urdf(model, out, cfg.sim)
-    write_usd(model, out, cfg.sim)
+    write_urdf(model, out, sim)
+    write_usd(model, out, sim)
     _visual_glb(model, out / "visual.glb")
     m["export_s"] = round(time.perf_counter() - t0, 3)
 

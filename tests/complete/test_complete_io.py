@@ -9,7 +9,7 @@ import trimesh
 
 from drawer_lib.complete.io import read_complete, write_complete
 from drawer_lib.errors import InputError
-from drawer_lib.sim.model import PartBody, RigidBody, TwinModel, box_shape, mesh_shape
+from drawer_lib.bodies import PartBody, RigidBody, TwinModel, box_shape, mesh_shape
 from drawer_lib.splat.render import Gaussians
 from drawer_lib.splat.ply import read_gaussian_ply
 

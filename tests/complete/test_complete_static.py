@@ -15,7 +15,7 @@ from drawer_lib.complete.cut import OrientedBox, cut_parts
 from drawer_lib.complete.static_collision import (VoxelGrid, carve, collision_fidelity, dominant_yaw, merge_boxes,
                                                   static_collision, yaw_rotation)
 from drawer_lib.errors import ConfigError, InputError
-from drawer_lib.sim.model import box_shape
+from drawer_lib.bodies import box_shape
 
 EXACT = StaticCollisionConfig(cell=0.04, shell_depth=0.0, fill_tol=0.0, min_island_voxels=0, skins=False)
 

@@ -18,7 +18,7 @@ GROUPS = {  # the config group of each stage -> its typed config (what the stage
     "decompose": "drawer_lib.perception.config:DecomposeConfig",
     "articulate": "drawer_lib.articulation.config:ArticulateConfig",
     "complete": "drawer_lib.complete.config:CompleteConfig", "twin": "drawer_lib.twin.config:TwinConfig",
-    "simulate": "drawer_lib.sim.pipeline:SimulateConfig", "stability": "drawer_lib.sim.stability_stage:StabilityConfig",
+    "simulate": "drawer_lib.simulate.pipeline:SimulateConfig", "stability": "drawer_lib.stability.pipeline:StabilityConfig",
     "pareto": "drawer_lib.report.pareto:ParetoConfig",
 }
 

@@ -11,7 +11,8 @@ import sim_fixtures as F
 from drawer_lib.errors import InputError, NonFiniteError, TwinCheckError
 from drawer_lib.sim.checks import check_twin
 from drawer_lib.sim.mjcf import build_spec, compile_spec, part_index, write_mjcf
-from drawer_lib.sim.model import ContactConfig, JointConfig, SimConfig, TwinModel
+from drawer_lib.bodies import TwinModel
+from drawer_lib.sim.config import ContactConfig, JointConfig, SimConfig
 
 
 @pytest.fixture(scope="module")

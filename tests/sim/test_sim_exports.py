@@ -11,7 +11,8 @@ import yourdfpy
 from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
 import sim_fixtures as F
-from drawer_lib.sim.model import SimConfig, TwinModel, box_shape
+from drawer_lib.bodies import TwinModel, box_shape
+from drawer_lib.sim.config import SimConfig
 from drawer_lib.sim.urdf import matrix_to_rpy, write_urdf
 from drawer_lib.sim.usd import joint_frame, write_usd
 

@@ -11,7 +11,8 @@ import pytest
 import sim_fixtures as F
 from drawer_lib.sim.mjcf import (BIT_PART, BIT_RIGID, BIT_STATIC, GROUP_COLLISION, build_spec, compile_spec,
                                  contact_bits, drive_gain, part_index, write_mjcf)
-from drawer_lib.sim.model import ContactConfig, SimConfig, TwinModel
+from drawer_lib.bodies import TwinModel
+from drawer_lib.sim.config import ContactConfig, SimConfig
 
 
 @pytest.fixture(scope="module")

@@ -3,31 +3,25 @@ door, a flap, two cups): complete/ -> twin/ with MJCF (checked), URDF, USD, per-
 opened-state renders and twin.json; bad bodies end in an error naming the part."""
 
 import json
-import math
-import shutil
-import sys
-from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
-import torch
 import trimesh
+from sim_fixtures import kitchen, parts_of
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "sim"))
-from sim_fixtures import kitchen, parts_of  # noqa: E402
-
-from drawer_lib.complete.io import write_complete  # noqa: E402
-from drawer_lib.errors import InputError  # noqa: E402
-from drawer_lib.io.capture import load_capture  # noqa: E402
-from drawer_lib.io.parts import write_parts  # noqa: E402
-from drawer_lib.runner import StageRun  # noqa: E402
-from drawer_lib.sim.model import PartBody, TwinModel  # noqa: E402
-from drawer_lib.splat.gaussians import box_surface_gaussians, concat  # noqa: E402
-from drawer_lib.splat.ply import read_gaussian_ply  # noqa: E402
-from drawer_lib.twin.config import RendersConfig, TwinConfig  # noqa: E402
-from drawer_lib.twin.pipeline import run_twin  # noqa: E402
-from drawer_lib.viewer.scene import load_twin_scene  # noqa: E402
+from drawer_lib.bodies import PartBody, TwinModel
+from drawer_lib.complete.io import write_complete
+from drawer_lib.errors import InputError
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.parts import write_parts
+from drawer_lib.runner import StageRun
+from drawer_lib.sim.config import SimConfig
+from drawer_lib.splat.gaussians import box_surface_gaussians, concat
+from drawer_lib.splat.ply import read_gaussian_ply
+from drawer_lib.twin.config import RendersConfig, TwinConfig
+from drawer_lib.twin.pipeline import run_twin
+from drawer_lib.viewer.scene import load_twin_scene
 
 
 def gaussians_of(model: TwinModel) -> dict:
@@ -50,7 +44,7 @@ def built(tmp_path_factory, exact_capture):
     cap = load_capture(exact_capture[0], check_files=False)
     (d / "twin").mkdir()
     cfg = TwinConfig(renders=RendersConfig(max_views=1, lpips=False))
-    m = run_twin(cfg, cap, d / "parts.json", d / "complete", StageRun("twin", d / "twin", d / "twin", 0))
+    m = run_twin(cfg, SimConfig(), cap, d / "parts.json", d / "complete", StageRun("twin", d / "twin", d / "twin", 0))
     return d, model, gs, m, cap
 
 
@@ -123,5 +117,5 @@ def test_a_bad_part_is_an_error_naming_it(tmp_path, exact_capture):
     (tmp_path / "twin").mkdir()
     cap = load_capture(exact_capture[0], check_files=False)
     with pytest.raises(InputError, match=bad.id):
-        run_twin(TwinConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
+        run_twin(TwinConfig(), SimConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
                  StageRun("twin", tmp_path / "twin", tmp_path / "twin", 0))

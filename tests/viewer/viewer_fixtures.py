@@ -4,21 +4,17 @@ analytic kitchen of tests/sim (a drawer in a carcass, a door, a flap, a counter,
 per body) and ``twin.json``."""
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
+from sim_fixtures import kitchen
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "sim"))
-from sim_fixtures import kitchen  # noqa: E402
-
-from drawer_lib.sim.mjcf import build_spec, write_mjcf  # noqa: E402
-from drawer_lib.splat.gaussians import box_surface_gaussians, concat  # noqa: E402
-from drawer_lib.splat.ply import write_gaussian_ply  # noqa: E402
-from drawer_lib.splat.render import Gaussians  # noqa: E402
-from drawer_lib.splat.sh import C0  # noqa: E402
-
+from drawer_lib.sim.mjcf import build_spec, write_mjcf
+from drawer_lib.splat.gaussians import box_surface_gaussians, concat
+from drawer_lib.splat.ply import write_gaussian_ply
+from drawer_lib.splat.render import Gaussians
+from drawer_lib.splat.sh import C0
 
 BODY_COLORS = {"static": (0.7, 0.7, 0.7), "drawer_0": (0.9, 0.15, 0.1), "door_0": (0.1, 0.8, 0.2),
                "flap_0": (0.15, 0.3, 0.95), "cup_0": (0.9, 0.8, 0.1), "cup_1": (0.8, 0.2, 0.8)}

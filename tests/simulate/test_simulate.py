@@ -1,4 +1,4 @@
-"""The simulate stage's physics (drawer_lib.sim.simulate / pipeline) on the tiny analytic kitchen
+"""The simulate stage's physics (drawer_lib.simulate.drive / pipeline) on the tiny analytic kitchen
 (a drawer, a door, a flap): every part driven open reaches its upper limit along its own
 kinematics, and the EMD of the simulated tracks against the part itself is ~0."""
 
@@ -13,8 +13,8 @@ from drawer_lib.io.parts import write_parts
 from drawer_lib.metrics.motion import front_grid, motion_emd
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
-from drawer_lib.sim.pipeline import SimulateConfig, run_simulate
-from drawer_lib.sim.simulate import drive_open
+from drawer_lib.simulate.pipeline import SimulateConfig, run_simulate
+from drawer_lib.simulate.drive import drive_open
 from drawer_lib.geometry.camera import Camera, Intrinsics
 
 
@@ -45,7 +45,7 @@ def test_every_part_opens_along_its_own_joint(simulated):
             assert ideal <= per[p.id]["time_to_upper_s"] <= 1.25 * ideal + 0.05
     with np.load(d / "simulate" / "tracks.npz") as t:
         assert t["drawer_0/points"].shape == (50, 64, 3) and t["drawer_0/reached"].all()
-    # the interaction probes ran, each a metric (tests/sim/test_interact.py checks them one by one)
+    # the interaction probes ran, each a metric (tests/simulate/test_interact.py checks them one by one)
     assert (m["cup_rides_along_passed"], m["cup_rides_along_n"]) == (1, 1) and m["cup_rides_along_error_max_m"] < 0.005
     assert (m["pull_handle_passed"], m["pull_handle_n"]) == (3, 3) and m["pull_handle_peak_force_max_n"] < 10
     assert m["drop_on_counter_passed"] == 1 and abs(m["drop_on_counter_rest_gap_max_m"]) < 0.003

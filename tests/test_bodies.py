@@ -1,5 +1,5 @@
-"""The twin description: validation (errors name the part, nothing is written), mass
-properties against closed forms, convex decomposition, the config."""
+"""The body model (drawer_lib/bodies.py): validation (errors name the part, nothing is written),
+mass properties against closed forms, convex decomposition; and the simulation config."""
 
 import dataclasses
 import math
@@ -9,10 +9,10 @@ import pytest
 import trimesh
 
 import sim_fixtures as F
+from drawer_lib.bodies import TwinModel, box_shape, convex_pieces, mass_properties, mesh_shape
 from drawer_lib.errors import ConfigError, InputError
+from drawer_lib.sim.config import ContactConfig, JointConfig, SimConfig
 from drawer_lib.sim.mjcf import build_spec, write_mjcf
-from drawer_lib.sim.model import (ContactConfig, JointConfig, SimConfig, TwinModel, box_shape, convex_pieces,
-                                  mass_properties, mesh_shape)
 from drawer_lib.sim.urdf import write_urdf
 from drawer_lib.sim.usd import write_usd
 

@@ -1,6 +1,6 @@
 """What the ``stability`` stage does: ``twin/scene.xml`` + ``parts.json`` -> ``stability/``.
 
-Runs the matrix of :mod:`drawer_lib.sim.study` (the twin's own parts, nominal, and the extreme
+Runs the matrix of :mod:`drawer_lib.stability.study` (the twin's own parts, nominal, and the extreme
 cases) over ``integrators`` x ``timesteps`` and writes
 
 * ``matrix.csv``: one row per case x integrator x timestep (the twin's parts one row each,
@@ -11,7 +11,7 @@ cases) over ``integrators`` x ``timesteps`` and writes
   on every nominal case (the twin's simulation default, which ``simulate`` uses), the twin
   config's own default and whether it agrees, the full twin's real-time factor at both, and
   every extreme case the choice does not handle (diverged, or error above the tolerance) with
-  the armature and the damping that make it stable (:func:`drawer_lib.sim.study.remedy`);
+  the armature and the damping that make it stable (:func:`drawer_lib.stability.study.remedy`);
 * ``metrics.json``: the choice and its figures.
 """
 
@@ -32,9 +32,9 @@ from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import read_parts
 from drawer_lib.runner import StageRun
-from drawer_lib.sim.stability import INTEGRATORS
+from drawer_lib.stability.hinge import INTEGRATORS
 from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
-from drawer_lib.sim.study import Cell, choose, extreme_cases, reference_trace, remedy, run_cell, twin_case
+from drawer_lib.stability.study import Cell, choose, extreme_cases, reference_trace, remedy, run_cell, twin_case
 
 
 

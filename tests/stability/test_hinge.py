@@ -1,4 +1,4 @@
-"""The stability study's hinge (drawer_lib.sim.stability): the closed form against a fine RK4
+"""The stability study's hinge (drawer_lib.stability.hinge): the closed form against a fine RK4
 run, each integrator's order of convergence, and the divergences a stiff spring and a heavy
 damper on a light link cause (as measured: Euler / implicit / implicitfast are
 first order, RK4 fourth; a stiff joint breaks every integrator once w dt > 2; a heavy damper
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from drawer_lib.sim.stability import INTEGRATORS, Hinge, run_cell
+from drawer_lib.stability.hinge import INTEGRATORS, Hinge, run_cell
 
 
 @pytest.mark.parametrize("hinge", [Hinge(), Hinge(damping=10.0), Hinge(damping=2 * math.sqrt(10.0 * 0.35)),

@@ -1,4 +1,4 @@
-"""The stability study's matrix (drawer_lib.sim.study, drawer_lib.sim.stability_stage): the
+"""The stability study's matrix (drawer_lib.stability.study, drawer_lib.stability.pipeline): the
 extreme cases find what was measured, the choice rule, the remedies, and the
 stage's outputs on the tiny analytic kitchen."""
 
@@ -13,9 +13,9 @@ from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.parts import write_parts
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
-from drawer_lib.sim.stability import Hinge
-from drawer_lib.sim.stability_stage import StabilityConfig, read_choice, read_matrix, run_stability
-from drawer_lib.sim.study import (REMEDY_ARMATURE, REMEDY_DAMPING, Cell, choose, extreme_cases, hinge_case,
+from drawer_lib.stability.hinge import Hinge
+from drawer_lib.stability.pipeline import StabilityConfig, read_choice, read_matrix, run_stability
+from drawer_lib.stability.study import (REMEDY_ARMATURE, REMEDY_DAMPING, Cell, choose, extreme_cases, hinge_case,
                                   reference_trace, remedy, run_cell, simulate_case, twin_case)
 
 
@@ -137,7 +137,7 @@ def test_twin_case_converges_with_the_timestep():
 @pytest.fixture(scope="module")
 def stage(tmp_path_factory):
     """The stage on the tiny kitchen, every case cut to 0.3 simulated s (the references' cost)."""
-    import drawer_lib.sim.stability_stage as ss
+    import drawer_lib.stability.pipeline as ss
 
     mp = pytest.MonkeyPatch()
     short = lambda c: dataclasses.replace(c, duration=min(c.duration, 0.3))  # noqa: E731
@@ -181,7 +181,7 @@ def test_stage_writes_the_matrix_heatmap_and_choice(stage):
 def test_the_matrix_does_not_depend_on_the_number_of_workers():
     """Forked workers (one case each at a time) give the cells of the serial loop, in its order,
     up to the measured wall time."""
-    from drawer_lib.sim.stability_stage import run_matrix_parallel
+    from drawer_lib.stability.pipeline import run_matrix_parallel
 
     cases = [dataclasses.replace(c, duration=min(c.duration, 0.2)) for c in extreme_cases()[:4]]
     cfg = dict(integrators=["euler", "implicitfast"], timesteps=[1e-3, 5e-3])
@@ -192,7 +192,7 @@ def test_the_matrix_does_not_depend_on_the_number_of_workers():
 
 
 def test_stage_choice_is_what_simulate_runs_with(stage, tmp_path):
-    from drawer_lib.sim.pipeline import SimulateConfig, run_simulate
+    from drawer_lib.simulate.pipeline import SimulateConfig, run_simulate
 
     d, m = stage
     run = StageRun("simulate", tmp_path, tmp_path, 0)

@@ -1,4 +1,4 @@
-"""Interaction probes on the tiny analytic kitchen's MJCF (drawer_lib.sim.interact): a cup in the
+"""Interaction probes on the tiny analytic kitchen's MJCF (drawer_lib.simulate.interact): a cup in the
 opened drawer rides along when it closes, a hand pulling each handle opens the part with a
 plausible force, a block dropped on the counter rests on it; and their failures are seen."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import sim_fixtures as F
 
-from drawer_lib.sim.interact import cup_rides_along, drop_on_counter, pull_handle
+from drawer_lib.simulate.interact import cup_rides_along, drop_on_counter, pull_handle
 from drawer_lib.sim.mjcf import build_spec, write_mjcf
 
 
@@ -49,7 +49,7 @@ def test_pulling_the_handle_opens_the_part(scene, pid):
 
 def test_a_stiff_hinge_needs_more_force(scene, tmp_path):
     model = F.kitchen()
-    from drawer_lib.sim.model import JointConfig, SimConfig
+    from drawer_lib.sim.config import JointConfig, SimConfig
 
     cfg = SimConfig(revolute=JointConfig(damping=50.0, armature=0.005, frictionloss=0.05, speed=0.8726646,
                                          drive_tau=0.02, effort=20.0))

@@ -10,7 +10,7 @@ the GT (motion EMD). ``metrics.json``: how far the simulation strays from the pa
 kinematics (``kinematic_dev_max_m``: the largest distance between a simulated point and where
 the joint puts it at the same q; ~0 unless the physics fights the joint), the parts that did
 not reach their upper limit or diverged, the simulated and wall time; then the interaction
-probes of :mod:`drawer_lib.sim.interact` (a cup in each drawer, a hand on each part, a block
+probes of :mod:`drawer_lib.simulate.interact` (a cup in each drawer, a hand on each part, a block
 dropped on the counter: ``motion.json``'s ``probes``, ``<probe>_passed`` / ``_n`` and the worst
 value). Every file it writes is a declared DVC output (an undeclared one is not pushed to a
 remote, and a clone that pulls then sees ``out/`` differ and reruns what depends on it).
@@ -29,17 +29,17 @@ from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.motion import front_grid, kinematic_tracks
 from drawer_lib.runner import StageRun
-from drawer_lib.sim.interact import cup_rides_along, drop_on_counter, pull_handle
+from drawer_lib.simulate.interact import cup_rides_along, drop_on_counter, pull_handle
 from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
-from drawer_lib.sim.simulate import drive_open
-from drawer_lib.sim.stability_stage import read_choice
+from drawer_lib.simulate.drive import drive_open
+from drawer_lib.stability.pipeline import read_choice
 
 
 @dataclass(frozen=True)
 class SimulateConfig:
     """``grid``: n x n points per front; ``samples``: joint values recorded per part;
     ``max_time``: simulated seconds per part (None: 2 x range / drive speed + 1 s);
-    ``interactions``: run the probes of :mod:`drawer_lib.sim.interact`; ``use_stability``: run
+    ``interactions``: run the probes of :mod:`drawer_lib.simulate.interact`; ``use_stability``: run
     with the integrator and timestep of the ``stability`` stage's ``choice.json`` (else the
     twin's own, from ``scene.xml``)."""
 
@@ -119,7 +119,7 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
 
 def _interactions(xml: Path, parts: list, run: StageRun, option: tuple[str, float] | None = None
                   ) -> tuple[dict, list[dict]]:
-    """The probes (module :mod:`drawer_lib.sim.interact`): a cup in every drawer, a hand on
+    """The probes (module :mod:`drawer_lib.simulate.interact`): a cup in every drawer, a hand on
     every part, a block dropped on the counter; (their metrics, every probe as a dict)."""
     t0 = time.perf_counter()
     drawers = [p for p in parts if p.kind == "prismatic"

@@ -12,7 +12,7 @@ import numpy as np
 import trimesh
 
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile
-from drawer_lib.sim.model import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
+from drawer_lib.bodies import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
 
 T = 0.018  # carcass and front panel thickness
 TD = 0.012  # drawer walls

@@ -46,7 +46,7 @@ import numpy as np
 
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.sim.mjcf import INTEGRATOR_ENUM
-from drawer_lib.sim.stability import INTEGRATORS, Hinge
+from drawer_lib.stability.hinge import INTEGRATORS, Hinge
 
 REF_TIMESTEP = 1e-5
 # Among integrators that all pass at a timestep: implicitfast first (MuJoCo's recommended
