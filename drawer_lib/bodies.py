@@ -25,6 +25,7 @@ import trimesh
 from jaxtyping import Float, Int
 
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.boxes import OrientedBox
 
 SHAPE_KINDS = ("box", "mesh")
 JOINT_KINDS = ("revolute", "prismatic")
@@ -40,8 +41,8 @@ _ROT_TOL = 1e-6
 class Shape:
     """One collision or visual piece, in world coordinates at q = 0.
 
-    ``kind="box"``: ``center`` [3] (m), ``rotation`` [3, 3] (columns = the box axes in the world,
-    a proper rotation), ``half`` [3] half extents along those axes (m).
+    ``kind="box"``: ``box`` an :class:`~drawer_lib.geometry.boxes.OrientedBox` (the box's
+    centre, rotation and half extents; :func:`box_shape` builds one).
     ``kind="mesh"``: ``vertices`` [V, 3] float (m), ``faces`` [F, 3] int (vertex indices).
     A collision mesh must be convex (MuJoCo collides a mesh as its convex hull; the exports
     write the hull); use :func:`convex_pieces` for a concave one.
@@ -50,21 +51,14 @@ class Shape:
     """
 
     kind: str
-    center: Float[np.ndarray, "3"] | None = None
-    rotation: Float[np.ndarray, "3 3"] | None = None
-    half: Float[np.ndarray, "3"] | None = None
+    box: OrientedBox | None = None
     vertices: Float[np.ndarray, "V 3"] | None = None
     faces: Int[np.ndarray, "F 3"] | None = None
 
     def __post_init__(self):
         if self.kind == "box":
-            if self.center is None or self.half is None:
-                raise ValueError("Shape(kind='box') needs center [3] and half [3]")
-            rot = np.eye(3) if self.rotation is None else self.rotation
-            for name, val in (("center", self.center), ("rotation", rot), ("half", self.half)):
-                a = np.array(val, dtype=np.float64)
-                a.setflags(write=False)
-                object.__setattr__(self, name, a)
+            if not isinstance(self.box, OrientedBox):
+                raise ValueError("Shape(kind='box') needs box: an OrientedBox")
         elif self.kind == "mesh":
             if self.vertices is None or self.faces is None:
                 raise ValueError("Shape(kind='mesh') needs vertices [V, 3] and faces [F, 3]")
@@ -79,20 +73,21 @@ class Shape:
 
     def __repr__(self) -> str:
         if self.kind == "box":
-            return f"Shape(box, center={np.round(self.center, 4).tolist()}, half={np.round(self.half, 4).tolist()})"
+            return f"Shape({self.box!r})"
         return f"Shape(mesh, {len(self.vertices)} vertices, {len(self.faces)} faces)"
 
     def shifted(self, offset: Float[np.ndarray, "3"]) -> "Shape":
         """The same shape translated by ``offset`` [3] (m): world -> a body frame at -offset."""
         if self.kind == "box":
-            return Shape("box", center=self.center + offset, rotation=self.rotation, half=self.half)
+            b = self.box
+            return Shape("box", box=OrientedBox(b.center + offset, b.rotation, b.half))
         return Shape("mesh", vertices=self.vertices + offset, faces=self.faces)
 
     def triangles(self) -> tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]]:
         """The surface as a triangle mesh: (vertices [V, 3], faces [F, 3], outward for a box)."""
         if self.kind == "mesh":
             return self.vertices, self.faces
-        return _BOX_VERTS * self.half @ self.rotation.T + self.center, _BOX_FACES
+        return self.box.triangles()
 
     def solid(self) -> tuple[Float[np.ndarray, "V 3"], Int[np.ndarray, "F 3"]]:
         """The collision solid: a box's 12 triangles, a mesh's convex hull (vertices [V, 3],
@@ -110,18 +105,12 @@ class Shape:
         """(volume m^3, centroid [3], inertia [3, 3] about the centroid in world axes per unit
         density, m^5) of the collision solid."""
         if self.kind == "box":
-            h = self.half
+            h, R = self.box.half, self.box.rotation
             vol = 8.0 * float(np.prod(h))
             local = np.diag([h[1] ** 2 + h[2] ** 2, h[0] ** 2 + h[2] ** 2, h[0] ** 2 + h[1] ** 2]) * vol / 3.0
-            return vol, self.center.copy(), self.rotation @ local @ self.rotation.T
+            return vol, self.box.center.copy(), R @ local @ R.T
         props = self._hull.mass_properties  # exact polyhedral integrals, density 1
         return float(props["volume"]), np.asarray(props["center_mass"], np.float64), np.asarray(props["inertia"], np.float64)
-
-
-# unit box [-1, 1]^3: corners (bit 0 -> x, bit 1 -> y, bit 2 -> z) and 12 outward triangles
-_BOX_VERTS = np.array([[(i & 1) * 2 - 1, (i >> 1 & 1) * 2 - 1, (i >> 2 & 1) * 2 - 1] for i in range(8)], np.float64)
-_BOX_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                       [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.int64)
 
 
 def _hull(vertices: np.ndarray) -> trimesh.Trimesh:
@@ -144,8 +133,8 @@ def box_shape(center: Sequence[float] | np.ndarray, half: Sequence[float] | np.n
               rotation: Sequence[Sequence[float]] | np.ndarray | None = None) -> Shape:
     """A box of half extents ``half`` [3] (m) centred at ``center`` [3] (m), axes the columns of
     ``rotation`` [3, 3] (identity: axis-aligned)."""
-    return Shape("box", center=np.asarray(center, np.float64), half=np.asarray(half, np.float64),
-                 rotation=np.eye(3) if rotation is None else np.asarray(rotation, np.float64))
+    R = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
+    return Shape("box", box=OrientedBox(np.asarray(center, np.float64), R, np.asarray(half, np.float64)))
 
 
 def mesh_shape(vertices: Sequence[Sequence[float]] | np.ndarray, faces: Sequence[Sequence[int]] | np.ndarray) -> Shape:
@@ -359,12 +348,12 @@ def _check_shapes(shapes: Sequence[Shape], what: str, collision: bool) -> None:
             raise InputError(f"{what} {k} is a {type(s).__name__}, not a Shape")
         if s.kind == "box":
             for name in ("center", "rotation", "half"):
-                a = getattr(s, name)
+                a = getattr(s.box, name)
                 if not np.isfinite(a).all():
                     raise InputError(f"{what} {k}: box {name} {a.tolist()} is not finite")
-            if not (s.half > 0).all():
-                raise InputError(f"{what} {k}: box half extents {s.half.tolist()} must be > 0")
-            R = s.rotation
+            if not (s.box.half > 0).all():
+                raise InputError(f"{what} {k}: box half extents {s.box.half.tolist()} must be > 0")
+            R = s.box.rotation
             if np.abs(R.T @ R - np.eye(3)).max() > _ROT_TOL or np.linalg.det(R) < 0:
                 raise InputError(f"{what} {k}: box rotation is not a proper rotation matrix")
             continue

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Interior depth: fitted templates (drawer_lib/complete/interiors.py) against DRAWER's fixed
+"""Interior depth: fitted templates (drawer_lib/complete/interiors/) against DRAWER's fixed
 rule (1.5 x width for doors, 1.25 x for drawers), both scored against the GT interior depth
 (drawer_lib/metrics/interiors.py). Prints one row per kitchen (mean / worst absolute error of
 the free depth, m) and, with ``--parts``, one row per part.
@@ -28,8 +28,9 @@ from omegaconf import OmegaConf
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from drawer_lib.complete.interiors import build_interiors, drawer_rule_interiors  # noqa: E402
-from drawer_lib.complete.interiors_config import InteriorsConfig  # noqa: E402
+from drawer_lib.complete.interiors.config import InteriorsConfig  # noqa: E402
+from drawer_lib.complete.interiors.drawer_rule import drawer_rule_interiors  # noqa: E402
+from drawer_lib.complete.interiors.fit import build_interiors  # noqa: E402
 from drawer_lib.config.typed import to_typed  # noqa: E402
 from drawer_lib.geometry.camera import Intrinsics, invert_rigid  # noqa: E402
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile, read_parts  # noqa: E402
@@ -101,7 +102,8 @@ def run(name: str, out: Path, cfg: InteriorsConfig) -> tuple[dict, dict, float]:
     wall = time.perf_counter() - t
     floor = res.evidence[0].floor_z if res.evidence else None
     rule = drawer_rule_interiors(pred.parts, cfg, floor)
-    rows = interior_depth_error(pred, gm, gt, res.interiors, rule, inst)
+    rows = interior_depth_error(pred, gm, gt, {x.part_id: (x.template, x.free_depth) for x in res.interiors},
+                                {x.part_id: x.free_depth for x in rule}, inst)
     for it in res.interiors:
         if it.part_id in rows:
             rows[it.part_id]["evidence"] = it.record["evidence"]

@@ -119,10 +119,10 @@ def parts_of(model: TwinModel) -> PartsFile:
     """parts.json entries for the fixture's bodies (fronts from each part's first collision box)."""
     out = []
     for b in model.parts:
-        s = max(b.collision, key=lambda s: np.prod(np.asarray(s.half)[[0, 2]]))
-        c = np.asarray(s.center) + np.array([0.0, -s.half[1], 0.0])
+        s = max(b.collision, key=lambda s: np.prod(np.asarray(s.box.half)[[0, 2]]))
+        c = np.asarray(s.box.center) + np.array([0.0, -s.box.half[1], 0.0])
         out.append(Part(b.id, b.kind, Axis(tuple(b.axis_origin), tuple(b.axis_direction)), tuple(b.limits),
-                        Front(tuple(c), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2 * s.half[0], 2 * s.half[2]))))
+                        Front(tuple(c), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2 * s.box.half[0], 2 * s.box.half[2]))))
     for r in model.rigid:
         v = r.visual[0].vertices
         lo, hi = v.min(0), v.max(0)

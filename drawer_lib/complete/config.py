@@ -6,7 +6,7 @@ Lengths in metres, angles in degrees, densities in kg/m^3.
 
 from dataclasses import dataclass, field
 
-from drawer_lib.complete.interiors_config import InteriorsConfig
+from drawer_lib.complete.interiors.config import InteriorsConfig
 from drawer_lib.errors import ConfigError
 
 

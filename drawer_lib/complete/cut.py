@@ -19,7 +19,6 @@ union then contains the exact swept volume.
 
 import math
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,39 +29,11 @@ from drawer_lib.articulation.config import JointsConfig
 from drawer_lib.articulation.probes import carcass_depth
 from drawer_lib.complete.config import CutConfig
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.boxes import OrientedBox, boxes_contain, front_frame
 from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.parts import Front, Part, PartsFile
 
-_CHUNK = 2_000_000  # point-box tests per vectorised block
-
-
-# ------------------------------------------------------------------------------ oriented boxes
-
-
-@dataclass(frozen=True, eq=False)
-class OrientedBox:
-    """A box: ``center`` [3] (m), ``rotation`` [3, 3] (columns = its axes in the world), ``half``
-    [3] half extents (m) along those axes (the layout of a box ``Shape``)."""
-
-    center: np.ndarray
-    rotation: np.ndarray
-    half: np.ndarray
-
-    def contains(self, points: Float[np.ndarray, "N 3"], inflate: float = 0.0) -> Bool[np.ndarray, "N"]:
-        """Whether each point lies in the box grown by ``inflate`` (m) on every side (boundary
-        included)."""
-        local = (np.asarray(points, np.float64) - self.center) @ self.rotation  # [N, 3]
-        return np.all(np.abs(local) <= self.half + inflate, axis=1)
-
-    def corners(self) -> Float[np.ndarray, "8 3"]:
-        """The 8 corners [8, 3] (m)."""
-        s = np.array([[(i & 1) * 2 - 1, (i >> 1 & 1) * 2 - 1, (i >> 2 & 1) * 2 - 1] for i in range(8)], np.float64)
-        return self.center + (s * self.half) @ self.rotation.T
-
-    def bounds(self, inflate: float = 0.0) -> tuple[Float[np.ndarray, "3"], Float[np.ndarray, "3"]]:
-        """World axis-aligned bounds (lo [3], hi [3]) of the box grown by ``inflate``."""
-        ext = np.abs(self.rotation) @ (self.half + inflate)
-        return self.center - ext, self.center + ext
+# ------------------------------------------------------------------------------ swept volumes
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,49 +69,7 @@ class Sweep:
         return OrientedBox(self.centers[k], self.rotations[k], self.halves[k].copy())
 
 
-def boxes_contain(points: Float[np.ndarray, "N 3"], centers: Float[np.ndarray, "K 3"],
-                  rotations: Float[np.ndarray, "K 3 3"], half: Float[np.ndarray, "3"] | Float[np.ndarray, "K 3"]
-                  ) -> Bool[np.ndarray, "N"]:
-    """Whether each point [N, 3] lies in at least one of K oriented boxes (``centers`` [K, 3],
-    ``rotations`` [K, 3, 3] columns = axes, half extents ``half`` [3] shared or [K, 3])."""
-    P = np.asarray(points, np.float64)
-    out = np.zeros(len(P), bool)
-    K = len(centers)
-    if len(P) == 0 or K == 0:
-        return out
-    H = np.broadcast_to(np.asarray(half, np.float64), (K, 3))
-    ext = np.einsum("kij,kj->ki", np.abs(rotations), H)  # [K, 3] world half extents of each box
-    lo, hi = (centers - ext).min(0), (centers + ext).max(0)
-    idx = np.flatnonzero(np.all((P >= lo) & (P <= hi), axis=1))  # candidates in the union's bounds
-    off = np.einsum("kj,kjl->kl", centers, rotations)  # [K, 3] box centres in box coordinates
-    k0 = 0
-    while k0 < K and len(idx):
-        step = max(1, _CHUNK // max(len(idx), 1))
-        sl = slice(k0, min(K, k0 + step))
-        local = np.einsum("nj,kjl->knl", P[idx], rotations[sl]) - off[sl, None, :]  # [k, n, 3]
-        hit = np.all(np.abs(local) <= H[sl, None, :], axis=2).any(0)  # [n]
-        out[idx[hit]] = True
-        idx = idx[~hit]  # points found inside need no further test
-        k0 = sl.stop
-    return out
-
-
 # ------------------------------------------------------------------------------ part solids
-
-
-def front_frame(front: Front) -> Float[np.ndarray, "3 3"]:
-    """[3, 3] rotation whose columns are the front's (u, v, n) axes."""
-    n, u = np.asarray(front.normal, np.float64), np.asarray(front.u, np.float64)
-    return np.stack([u, np.cross(n, u), n], axis=1)
-
-
-def translated_box_hull(box, direction: Float[np.ndarray, "3"] | Sequence[float], lo: float, hi: float) -> OrientedBox:
-    """The oriented box that holds ``box`` (anything with ``center``, ``rotation``, ``half``)
-    translated by q * ``direction`` for every q in [lo, hi] (m): exactly the swept volume's
-    hull, the box grown by |R^T d| (hi - lo) / 2 about its mid-travel centre."""
-    d = np.asarray(direction, np.float64) / np.linalg.norm(direction)
-    R = np.asarray(box.rotation, np.float64)
-    return OrientedBox(np.asarray(box.center) + d * (lo + hi) / 2, R, np.asarray(box.half) + np.abs(R.T @ d) * (hi - lo) / 2)
 
 
 def front_box(front: Front, n_lo: float, n_hi: float, inset: float = 0.0) -> OrientedBox:
@@ -149,7 +78,7 @@ def front_box(front: Front, n_lo: float, n_hi: float, inset: float = 0.0) -> Ori
     (negative: behind it)."""
     if not (math.isfinite(n_lo) and math.isfinite(n_hi) and n_hi > n_lo):
         raise InputError(f"front_box: normal range [{n_lo}, {n_hi}] m is empty or not finite")
-    R = front_frame(front)
+    R = front_frame(front.normal, front.u)
     w, h = front.size
     iu, iv = min(inset, w / 4), min(inset, h / 4)
     c = np.asarray(front.center, np.float64) + R[:, 2] * (n_lo + n_hi) / 2
@@ -302,7 +231,7 @@ def body_owner(centroids: Float[np.ndarray, "F 3"], parts: list[Part], cfg: CutC
     best = np.full(len(centroids), -np.inf)
     for k, p in enumerate(parts):  # loop over parts
         f = p.front
-        local = (centroids - np.asarray(f.center)) @ front_frame(f)  # [F, 3] (u, v, n)
+        local = (centroids - np.asarray(f.center)) @ front_frame(f.normal, f.u)  # [F, 3] (u, v, n)
         hw, hh = f.size[0] / 2, f.size[1] / 2
         inside = ((np.abs(local[:, 0]) <= hw + cfg.margin) & (np.abs(local[:, 1]) <= hh + cfg.margin)
                   & (local[:, 2] >= -cfg.back) & (local[:, 2] <= cfg.protrusion))

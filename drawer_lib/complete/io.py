@@ -31,8 +31,7 @@ STATIC = "static"
 
 def _shape_json(s: Shape, folder: Path, stem: str) -> dict:
     if s.kind == "box":
-        return {"kind": "box", "center": np.asarray(s.center).tolist(), "rotation": np.asarray(s.rotation).tolist(),
-                "half": np.asarray(s.half).tolist()}
+        return {"kind": "box", **s.box.to_json()}
     rel = f"collision/{stem}.ply"
     trimesh.Trimesh(s.vertices, s.faces, process=False).export(folder / rel)
     return {"kind": "mesh", "file": rel}

@@ -36,12 +36,16 @@ import trimesh
 
 from drawer_lib.articulation.fronts import sample_points
 from drawer_lib.complete.config import CompleteConfig
-from drawer_lib.complete.cut import body_owner, cut_parts, front_box, front_frame, is_drawer, translated_box_hull
-from drawer_lib.complete.interiors import build_interiors, drawer_rule_interiors, floor_height, interior_colours
+from drawer_lib.complete.cut import body_owner, cut_parts, front_box, is_drawer
+from drawer_lib.complete.interiors.drawer_rule import drawer_rule_interiors
+from drawer_lib.complete.interiors.evidence import floor_height
+from drawer_lib.complete.interiors.fit import build_interiors
+from drawer_lib.complete.interiors.texture import interior_colours
 from drawer_lib.complete.io import STATIC, write_complete
 from drawer_lib.complete.rigid import build_rigids
 from drawer_lib.complete.static_collision import collision_fidelity, static_collision
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.boxes import front_frame
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.mesh import load_mesh
@@ -75,7 +79,7 @@ def _handle_hull(body: trimesh.Trimesh, part, max_proud: float, min_proud: float
     reaches past its own front.)"""
     v = np.asarray(body.vertices)
     f = part.front
-    u, w, n = ((v - np.asarray(f.center)) @ front_frame(f)).T
+    u, w, n = ((v - np.asarray(f.center)) @ front_frame(f.normal, f.u)).T
     proud = (np.abs(u) <= f.size[0] / 2) & (np.abs(w) <= f.size[1] / 2) & (n > min_proud) & (n <= max_proud)
     if proud.sum() < 8:
         return []
@@ -164,10 +168,10 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
 
         field = load_field(inp.field)
     static_cavities = [it for it in interiors.values() if it.body == STATIC]
-    carvers = [pc.sweep for pc in cut.parts.values()] + [it.outer.shape() for it in static_cavities]
+    carvers = [pc.sweep for pc in cut.parts.values()] + [it.outer for it in static_cavities]
     # a drawer's box walls (the interior template) are not its cut solid: their travel is
     # emptied too, exactly (not grown)
-    wall_sweeps = [translated_box_hull(w, p.axis.direction, *p.limits) for p in arts
+    wall_sweeps = [w.box.translated_hull(p.axis.direction, *p.limits) for p in arts
                    if p.kind == "prismatic" and (it := interiors.get(p.id)) is not None and it.body == p.id
                    for w in it.walls]
     sc = static_collision(cut.static, cfg.static, field, carvers, rigid_carvers + wall_sweeps)
@@ -188,7 +192,7 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
         # behind the outer face, one panel thick, inset by the clearance: reconstructed fronts
         # abut (shared edges) and must not touch their neighbours at q = 0
         panel = front_box(p.front, -cfg.cut.panel_thickness, 0.0, cfg.collision_clearance)
-        collision = [box_shape(panel.center, panel.half, panel.rotation)] + _handle_hull(pc.body, p, cfg.cut.protrusion) + moving_walls
+        collision = [Shape("box", box=panel)] + _handle_hull(pc.body, p, cfg.cut.protrusion) + moving_walls
         bodies.append(PartBody(p.id, p.kind, np.asarray(p.axis.origin), np.asarray(p.axis.direction), p.limits,
                                _mesh(pc.body) + moving_walls, collision, density_part))
 
@@ -288,8 +292,8 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
     for pid, it in interiors.items():
         mine = out.get(pid)
         front_rgb = _dc_colours(mine) if mine is not None and len(mine.means) else np.full((1, 3), 0.5)
-        tex = interior_colours(it, front_rgb, None, cfg.interiors.texture)
-        walls = [box_surface_gaussians(w.center, w.rotation, w.half, np.asarray(tex.base.get(name, np.mean(front_rgb, 0))),
+        tex = interior_colours(it, front_rgb, cfg.interiors.texture)
+        walls = [box_surface_gaussians(w.box, np.asarray(tex.base.get(name, np.mean(front_rgb, 0))),
                                        gc.spacing, gc.opacity, degree, toward=np.asarray(it.free.center))
                  for w, name in zip(it.walls, it.wall_names)]
         if walls:
@@ -299,7 +303,7 @@ def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, 
             # around the carcass while the part is closed
             part = next(p for p in arts if p.id == pid)
             f = part.front
-            u, v, n = ((w.means.double().numpy() - np.asarray(f.center)) @ front_frame(f)).T
+            u, v, n = ((w.means.double().numpy() - np.asarray(f.center)) @ front_frame(f.normal, f.u)).T
             keep = (np.abs(u) < f.size[0] / 2 - 0.003) & (np.abs(v) < f.size[1] / 2 - 0.003) & (n < -cut_cfg.panel_thickness)
             out[it.body] = concat([out[it.body], subset(w, torch.from_numpy(np.nonzero(keep)[0]))])
             interior[it.body] = np.concatenate([interior[it.body], np.ones(int(keep.sum()), bool)])

@@ -167,15 +167,13 @@ def occupancy_from_mesh(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, yaw: 
 
 
 def as_carver(c):
-    """A box ``Shape`` (e.g. an interior's cavity) as an
-    :class:`~drawer_lib.complete.cut.OrientedBox`; anything with ``bounds`` and ``contains``
-    (a :class:`~drawer_lib.complete.cut.Sweep`, an ``OrientedBox``) as it is."""
-    from drawer_lib.complete.cut import OrientedBox
-
+    """A box ``Shape`` as its :class:`~drawer_lib.geometry.boxes.OrientedBox`; anything with
+    ``bounds`` and ``contains`` (a :class:`~drawer_lib.complete.cut.Sweep`, an ``OrientedBox``)
+    as it is."""
     if isinstance(c, Shape):
         if c.kind != "box":
             raise InputError("carve: only box shapes can be carved (got a mesh shape)")
-        return OrientedBox(np.asarray(c.center), np.asarray(c.rotation), np.asarray(c.half))
+        return c.box
     if not (hasattr(c, "bounds") and hasattr(c, "contains")):
         raise InputError(f"carve: a {type(c).__name__} is neither a box Shape nor a volume with bounds/contains")
     return c
@@ -184,7 +182,7 @@ def as_carver(c):
 def carve(grid: VoxelGrid, carvers: Sequence, inflate: float) -> tuple[VoxelGrid, int]:
     """Empty the occupied cells whose centre lies in any of ``carvers`` grown by ``inflate``
     (m): a part's :class:`~drawer_lib.complete.cut.Sweep`, an interior's cavity as an
-    :class:`~drawer_lib.complete.cut.OrientedBox` or a box ``Shape``, or any object with
+    :class:`~drawer_lib.geometry.boxes.OrientedBox` or a box ``Shape``, or any object with
     ``bounds(inflate) -> (lo [3], hi [3])`` and ``contains(points [N, 3], inflate) -> [N]``.
     Returns (the carved grid, the number of cells emptied)."""
     occ = grid.occ.copy()

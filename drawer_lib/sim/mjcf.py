@@ -76,8 +76,8 @@ def _add_shapes(spec: mujoco.MjSpec, body: mujoco.MjsBody, owner: str, shapes: l
         name = f"{owner}/{role}{k}"
         local = s.shifted(offset)
         if local.kind == "box":
-            g = body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=local.half.tolist(),
-                              pos=local.center.tolist(), quat=_quat(local.rotation))
+            g = body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=local.box.half.tolist(),
+                              pos=local.box.center.tolist(), quat=_quat(local.box.rotation))
         else:
             v, f = local.solid() if collision else local.triangles()
             fname = f"{owner}.{role}{k}.obj"

@@ -50,8 +50,8 @@ def _geometries(link: ET.Element, owner: str, shapes: list[Shape], offset: np.nd
         el = ET.SubElement(link, "collision" if collision else "visual", name=f"{owner}_{role}{k}")
         geo = ET.Element("geometry")
         if local.kind == "box":
-            ET.SubElement(el, "origin", xyz=_fmt(local.center), rpy=_fmt(matrix_to_rpy(local.rotation)))
-            ET.SubElement(geo, "box", size=_fmt(2 * local.half))
+            ET.SubElement(el, "origin", xyz=_fmt(local.box.center), rpy=_fmt(matrix_to_rpy(local.box.rotation)))
+            ET.SubElement(geo, "box", size=_fmt(2 * local.box.half))
         else:
             v, f = local.solid() if collision else local.triangles()
             fname = f"{owner}.{role}{k}.obj"

@@ -74,9 +74,9 @@ def _shapes(stage: Usd.Stage, parent: str, shapes: list[Shape], offset: np.ndarr
         if local.kind == "box" and collision:
             cube = UsdGeom.Cube.Define(stage, path)
             cube.CreateSizeAttr(2.0)
-            cube.AddTranslateOp().Set(Gf.Vec3d(*local.center.tolist()))
-            cube.AddOrientOp().Set(_quatf(local.rotation))
-            cube.AddScaleOp().Set(Gf.Vec3f(*local.half.tolist()))
+            cube.AddTranslateOp().Set(Gf.Vec3d(*local.box.center.tolist()))
+            cube.AddOrientOp().Set(_quatf(local.box.rotation))
+            cube.AddScaleOp().Set(Gf.Vec3f(*local.box.half.tolist()))
             prim = cube
         else:
             v, f = local.solid() if collision else local.triangles()

@@ -25,6 +25,7 @@ from jaxtyping import Float
 from torch import Tensor
 
 from drawer_lib.errors import InputError
+from drawer_lib.geometry.boxes import OrientedBox
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_mul
 from drawer_lib.splat.project import project_gaussians_fused
@@ -111,32 +112,18 @@ def transform(g: Gaussians, R: Float[np.ndarray, "3 3"], t: Float[np.ndarray, "3
     return Gaussians(means, quats, g.scales, g.opacities, sh)
 
 
-def box_faces(center: Float[np.ndarray, "3"], rotation: Float[np.ndarray, "3 3"], half: Float[np.ndarray, "3"]
-              ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """The 6 faces of an oriented box as (centre [3], outward normal [3], in-plane axes [2, 3],
-    in-plane half extents [2]); ``rotation``'s columns are the box axes, ``half`` in metres."""
-    R, h = np.asarray(rotation, np.float64), np.asarray(half, np.float64)
-    out = []
-    for ax in range(3):
-        a, b = [k for k in range(3) if k != ax]
-        for s in (1.0, -1.0):
-            n = s * R[:, ax]
-            out.append((np.asarray(center, np.float64) + n * h[ax], n, np.stack([R[:, a], R[:, b]]), h[[a, b]]))
-    return out
-
-
-def box_surface_gaussians(center: Float[np.ndarray, "3"], rotation: Float[np.ndarray, "3 3"], half: Float[np.ndarray, "3"],
-                          color: Float[np.ndarray, "3"], spacing: float = 0.02, opacity: float = 0.95, sh_degree: int = 3,
-                          shade=None, toward: Float[np.ndarray, "3"] | None = None) -> Gaussians:
-    """Flat Gaussians covering the faces of one oriented box (see the module docstring).
+def box_surface_gaussians(box: OrientedBox, color: Float[np.ndarray, "3"], spacing: float = 0.02,
+                          opacity: float = 0.95, sh_degree: int = 3, shade=None,
+                          toward: Float[np.ndarray, "3"] | None = None) -> Gaussians:
+    """Flat Gaussians covering the faces of ``box`` (see the module docstring).
     ``color``: RGB in [0, 1]; ``shade(points [M, 3]) -> [M]`` an optional factor in [0, 1]
     per Gaussian (e.g. darker deeper inside a cabinet); ``toward``: cover only the faces whose
     outward normal points toward this point (a wall's inner faces, seen from inside its cavity:
     its outer faces lie in or outside the carcass, where they would show through)."""
-    if not spacing > 0 or not np.all(np.isfinite(half)) or np.any(np.asarray(half) < 0):
-        raise InputError(f"box_surface_gaussians: spacing {spacing} or half extents {half} not usable")
+    if not spacing > 0 or not np.all(np.isfinite(box.half)) or np.any(box.half < 0):
+        raise InputError(f"box_surface_gaussians: spacing {spacing} or half extents {box.half.tolist()} not usable")
     means, quats, scales = [], [], []
-    for c, n, ab, hab in box_faces(center, rotation, half):
+    for c, n, ab, hab in box.faces():
         if np.any(hab <= 0) or (toward is not None and float(n @ (np.asarray(toward, np.float64) - c)) <= 0):
             continue
         nu, nv = (np.maximum(np.ceil(2 * hab / spacing), 1)).astype(int)

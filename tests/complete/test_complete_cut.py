@@ -11,7 +11,7 @@ from complete_fixtures import (PANEL_T, Scene, box_mesh, cabinet_parts, cabinet_
                                in_prismatic_sweep, in_revolute_sweep, rect_y)
 
 from drawer_lib.complete.config import CutConfig
-from drawer_lib.complete.cut import boxes_contain, cut_parts, part_depth, part_solid, sweep_part
+from drawer_lib.complete.cut import cut_parts, part_depth, part_solid, sweep_part
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile
 
@@ -145,18 +145,6 @@ def test_sampled_sweep_contains_the_exact_one():
     far = ~in_revolute_sweep(P, lo - g, hi + g, np.asarray(door.axis.origin), np.asarray(door.axis.direction),
                              door.limits[1], n_q=1500)
     assert not sw.contains(P)[far].any()
-
-
-def test_boxes_contain_matches_a_loop():
-    rng = np.random.default_rng(1)
-    K = 7
-    A = np.linalg.qr(rng.normal(size=(K, 3, 3)))[0]
-    c, h = rng.normal(size=(K, 3)) * 0.3, rng.uniform(0.05, 0.3, size=(K, 3))
-    P = rng.normal(size=(5000, 3)) * 0.5
-    ref = np.zeros(len(P), bool)
-    for k in range(K):
-        ref |= np.all(np.abs((P - c[k]) @ A[k]) <= h[k], axis=1)
-    np.testing.assert_array_equal(boxes_contain(P, c, A, h), ref)
 
 
 # ------------------------------------------------------------------------------------ extremes
@@ -348,22 +336,3 @@ def test_whole_kitchen_no_static_face_inside_any_swept_volume(kitchen):
     n_blob = len(mesh.faces) - len(kitchen[0].faces)
     assert not np.isin(np.arange(len(mesh.faces) - n_blob, len(mesh.faces)), res.static_faces).any()
     assert sum(len(pc.cavity_faces) for pc in res.parts.values()) >= n_blob * (len(arts) - 2) / len(arts)
-
-
-def test_translated_box_hull_holds_the_travel_and_no_more():
-    """A tilted box slid along a slanted axis: every corner at every q lies in the hull, and for
-    a box slid along one of its own axes the hull is exactly the swept box."""
-    from drawer_lib.complete.cut import OrientedBox, translated_box_hull
-
-    c, s = math.cos(0.3), math.sin(0.3)
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    box = OrientedBox(np.array([0.1, 0.2, 0.3]), R, np.array([0.2, 0.01, 0.1]))
-    d = np.array([0.0, -1.0, 0.2])
-    hull = translated_box_hull(box, d, 0.05, 0.4)
-    corners = box.corners()
-    u = d / np.linalg.norm(d)
-    for q in np.linspace(0.05, 0.4, 15):
-        assert hull.contains(corners + q * u, inflate=1e-9).all()
-    along = translated_box_hull(OrientedBox(np.zeros(3), np.eye(3), np.array([0.2, 0.1, 0.1])), [0.0, 2.0, 0.0], 0.0, 0.4)
-    np.testing.assert_allclose(along.center, [0.0, 0.2, 0.0])
-    np.testing.assert_allclose(along.half, [0.2, 0.3, 0.1])

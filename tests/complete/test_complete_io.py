@@ -40,7 +40,7 @@ def test_round_trip(tmp_path):
     p = m.parts[0]
     np.testing.assert_allclose(p.axis_direction, [0, 0, -1])
     np.testing.assert_allclose(p.limits, (0, 1.5))
-    np.testing.assert_allclose(m.static_collision[0].rotation, rot_z(20), atol=1e-12)
+    np.testing.assert_allclose(m.static_collision[0].box.rotation, rot_z(20), atol=1e-12)
     np.testing.assert_allclose(m.rigid[0].collision[0].vertices, cup.vertices, atol=1e-6)
     assert d["bodies"][1]["interior"]["depth"] == 0.55 and d["info"] == {"note": 1}
     r = read_gaussian_ply(gfiles["static"])

@@ -34,7 +34,7 @@ def test_body_gaussians_split_the_appearance_model_exactly(tmp_path):
     import torch
 
     from drawer_lib.complete.config import CompleteConfig
-    from drawer_lib.complete.interiors import build_template
+    from drawer_lib.complete.interiors.templates import build_template
     from drawer_lib.complete.pipeline import _body_gaussians
     from drawer_lib.splat.ply import write_gaussian_ply
     from drawer_lib.splat.render import Gaussians

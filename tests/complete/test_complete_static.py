@@ -11,7 +11,8 @@ import trimesh
 from complete_fixtures import cabinet_parts, cabinet_scene
 
 from drawer_lib.complete.config import CutConfig, StaticCollisionConfig
-from drawer_lib.complete.cut import OrientedBox, cut_parts
+from drawer_lib.complete.cut import cut_parts
+from drawer_lib.geometry.boxes import OrientedBox
 from drawer_lib.complete.static_collision import (VoxelGrid, carve, collision_fidelity, dominant_yaw, merge_boxes,
                                                   static_collision, yaw_rotation)
 from drawer_lib.errors import ConfigError, InputError
@@ -114,12 +115,12 @@ def test_rotated_scene_gives_one_box_per_solid(yaw_deg):
     # (multiples of the cell from it) lie on grid planes: each solid is exactly one box
     sc = static_collision(mesh, EXACT, field=field)
     assert len(sc.shapes) == 3
-    got = sorted(sc.shapes, key=lambda s: tuple(np.round(s.center, 3)))
+    got = sorted(sc.shapes, key=lambda s: tuple(np.round(s.box.center, 3)))
     want = sorted(solids, key=lambda s: tuple(np.round(s[0], 3)))
     for s, (c, R, h) in zip(got, want):
-        np.testing.assert_allclose(s.center, c, atol=1e-6)
-        np.testing.assert_allclose(s.half, h, atol=1e-6)
-        np.testing.assert_allclose(s.rotation, R, atol=1e-9)
+        np.testing.assert_allclose(s.box.center, c, atol=1e-6)
+        np.testing.assert_allclose(s.box.half, h, atol=1e-6)
+        np.testing.assert_allclose(s.box.rotation, R, atol=1e-9)
     fid = collision_fidelity(sc.shapes, mesh, n_points=3000)
     assert fid["chamfer_l1"] < 1e-5 and fid["n_shapes"] == 3
     # without the rotation the same scene needs a staircase of boxes
@@ -167,18 +168,18 @@ def test_static_boxes_leave_the_parts_free_to_move():
     rng = np.random.default_rng(0)
     pts = []
     for s in sc.shapes:  # points inside every box (a test-side loop over boxes)
-        u = rng.uniform(-1, 1, size=(50, 3)) * s.half
-        pts.append(s.center + u @ s.rotation.T)
+        u = rng.uniform(-1, 1, size=(50, 3)) * s.box.half
+        pts.append(s.box.center + u @ s.box.rotation.T)
     P = np.concatenate(pts)
     slack = cfg.cell * (math.sqrt(3) / 2 - cfg.carve_inflate) + 1e-9  # a cell corner beyond the carved centre
     for p in cut.parts.values():
         assert not p.sweep.contains(P, inflate=-slack - p.sweep.grow).any(), p.id
     # the carcass below the top and beside the cavities is solid (filled below the up-facing top)
     probe = np.array([[0.3, 0.3, 0.25 + 0.0], [0.02, 0.3, 0.4]])
-    from drawer_lib.complete.cut import boxes_contain
+    from drawer_lib.geometry.boxes import boxes_contain
 
-    inside = boxes_contain(probe, np.stack([s.center for s in sc.shapes]), np.stack([s.rotation for s in sc.shapes]),
-                           np.stack([s.half for s in sc.shapes]))
+    inside = boxes_contain(probe, np.stack([s.box.center for s in sc.shapes]), np.stack([s.box.rotation for s in sc.shapes]),
+                           np.stack([s.box.half for s in sc.shapes]))
     assert inside[1]  # the left carcass side, no part sweeps there
 
 
@@ -214,7 +215,6 @@ def test_skins_keep_the_counter_above_a_carved_cavity():
     (grown by a cell, as the stage does): the boxes lose the counter above it, the skins give
     it back — one thin box at the counter's height over the cabinet — and none lies inside the
     cavity or the door's sweep."""
-    from drawer_lib.complete.cut import OrientedBox
     from drawer_lib.complete.static_collision import surface_skins
 
     carcass = trimesh.creation.box((0.6, 0.6, 0.82)).apply_translation((0.3, 0.3, 0.41))
@@ -227,20 +227,20 @@ def test_skins_keep_the_counter_above_a_carved_cavity():
     above = np.array([0.3, 0.3, 0.845])  # in the counter, above the cavity: carved away with it
 
     def inside(s, p):
-        return bool(np.all(np.abs(np.asarray(s.rotation).T @ (p - np.asarray(s.center))) <= np.asarray(s.half)))
+        return bool(np.all(np.abs(np.asarray(s.box.rotation).T @ (p - np.asarray(s.box.center))) <= np.asarray(s.box.half)))
 
     assert not any(inside(s, above) for s in sc.shapes)
     skins = surface_skins(mesh, sc.grid.rotation, [cavity])
-    tops = np.array([s.center[2] + s.half[2] for s in skins])
+    tops = np.array([s.box.center[2] + s.box.half[2] for s in skins])
     on_counter = [s for s, t in zip(skins, tops) if abs(t - 0.86) < 0.006]
     assert on_counter, tops
     # the counter's skins cover the cabinet's footprint, thin, at the counter's top
     xy = np.array([[x, y] for x in np.linspace(0.05, 0.55, 6) for y in np.linspace(0.05, 0.55, 6)])
     covered = np.zeros(len(xy), bool)
     for s in on_counter:
-        covered |= np.all(np.abs(xy - np.asarray(s.center)[:2]) <= np.asarray(s.half)[:2] + 1e-9, axis=1)
-        assert s.half[2] == pytest.approx(0.005)
-        assert not cavity.contains(np.asarray(s.center)[None]).any()
+        covered |= np.all(np.abs(xy - np.asarray(s.box.center)[:2]) <= np.asarray(s.box.half)[:2] + 1e-9, axis=1)
+        assert s.box.half[2] == pytest.approx(0.005)
+        assert not cavity.contains(np.asarray(s.box.center)[None]).any()
     assert covered.all()
     assert any(abs(t - 0.0) < 0.006 for t in tops)  # the floor too
     # with skins on, the stage's boxes include them

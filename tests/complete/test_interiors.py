@@ -1,4 +1,4 @@
-"""Fitted interior templates (drawer_lib/complete/interiors.py) on analytic cabinets.
+"""Fitted interior templates (drawer_lib/complete/interiors/) on analytic cabinets.
 
 Fixture: a carcass against a wall (plane y = 0) whose fronts face -y with their outer faces at
 y = -(D + tf): a door on x in [0, 0.6] beside two stacked drawers on x in [0.6, 1.2]; the mesh
@@ -10,26 +10,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from drawer_lib.complete.interiors import (
-    Evidence,
-    OBox,
-    build_interiors,
-    build_template,
-    check_part,
-    drawer_rule_depth,
-    drawer_rule_interiors,
-    fit_depths,
-    interior_colours,
-    obox_overlap_volume,
-    observed_colours,
-    template_kind,
-)
-from drawer_lib.complete.interiors_config import (
-    FitConfig,
-    InteriorsConfig,
-    TemplateConfig,
-    TextureConfig,
-)
+from drawer_lib.complete.interiors.config import FitConfig, InteriorsConfig, TemplateConfig, TextureConfig
+from drawer_lib.complete.interiors.drawer_rule import drawer_rule_depth, drawer_rule_interiors
+from drawer_lib.complete.interiors.evidence import DepthEvidence
+from drawer_lib.complete.interiors.fit import build_interiors, fit_depths
+from drawer_lib.complete.interiors.templates import build_template, check_part, template_kind
+from drawer_lib.complete.interiors.texture import interior_colours
+from drawer_lib.geometry.boxes import overlap_volume
 from drawer_lib.errors import ConfigError, NonFiniteError
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile
 
@@ -104,7 +91,7 @@ def test_fitted_depths_match_carcass(fitted):
     assert by["door"].shelves == 1  # 0.7 m of height, one shelf per 35 cm
     # the template lies behind its front, inside the carcass
     for it in res.interiors:
-        ys = np.concatenate([w.center[None] for w in it.walls])[:, 1]
+        ys = np.concatenate([w.box.center[None] for w in it.walls])[:, 1]
         assert np.all(ys > Y) and np.all(ys < 0.0)
 
 
@@ -113,12 +100,12 @@ def test_adjacent_interiors_do_not_interpenetrate(fitted):
     its = res.interiors
     for i in range(len(its)):
         for j in range(i + 1, len(its)):
-            assert obox_overlap_volume(its[i].outer, its[j].outer) < 1e-9, (its[i].part_id, its[j].part_id)
-            assert obox_overlap_volume(its[i].occupied, its[j].occupied) < 1e-9
+            assert overlap_volume(its[i].outer, its[j].outer) < 1e-9, (its[i].part_id, its[j].part_id)
+            assert overlap_volume(its[i].occupied, its[j].occupied) < 1e-9
             for a in its[i].walls:
                 for b in its[j].walls:
-                    ba, bb = OBox(a.center, a.rotation, a.half), OBox(b.center, b.rotation, b.half)
-                    assert obox_overlap_volume(ba, bb) < 1e-9
+                    ba, bb = a.box, b.box
+                    assert overlap_volume(ba, bb) < 1e-9
 
 
 def test_drawer_box_at_least_its_travel():
@@ -173,7 +160,7 @@ def test_extreme_fronts_give_valid_boxes(part):
     res = build_interiors([part], *cabinet_points(part.front.center[0] - 1, part.front.center[0] + 1, top=2.0), CFG)
     (it,) = res.interiors
     assert np.isfinite(it.depth) and CFG.fit.min_depth <= it.depth <= CFG.fit.max_depth
-    for w in it.walls + [it.free, it.outer]:
+    for w in [s.box for s in it.walls] + [it.free, it.outer]:
         assert np.all(np.isfinite(w.center)) and np.all(w.half > 0)
         assert abs(np.linalg.det(w.rotation) - 1) < 1e-9
     assert it.free_depth > 0
@@ -193,26 +180,6 @@ def test_nan_front_names_the_part():
 # ---------------------------------------------------------------------------------------------
 
 
-def test_overlap_volume_closed_forms_and_monte_carlo():
-    I = np.eye(3)
-    a = OBox(np.zeros(3), I, np.array([1.0, 1.0, 1.0]))
-    assert obox_overlap_volume(a, a) == pytest.approx(8.0)
-    assert obox_overlap_volume(a, OBox(np.array([0.5, 0.5, 0.0]), I, np.ones(3))) == pytest.approx(1.5 * 1.5 * 2)
-    assert obox_overlap_volume(a, OBox(np.array([2.0, 0.0, 0.0]), I, np.ones(3))) == 0.0  # touching
-    assert obox_overlap_volume(a, OBox(np.array([3.0, 0.0, 0.0]), I, np.ones(3))) == 0.0
-    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
-    Rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-    small = OBox(np.zeros(3), Rz, np.array([0.3, 0.2, 0.1]))
-    assert obox_overlap_volume(a, small) == pytest.approx(small.volume)
-    # slow twin: Monte Carlo on a generic pair
-    rng = np.random.default_rng(0)
-    Rx = np.array([[1, 0, 0], [0, np.cos(0.4), -np.sin(0.4)], [0, np.sin(0.4), np.cos(0.4)]])
-    b = OBox(np.array([0.7, -0.4, 0.3]), Rz @ Rx, np.array([0.8, 0.5, 0.6]))
-    X = rng.uniform(-1, 1, (400_000, 3))
-    mc = 8.0 * np.mean(b.contains(X))
-    assert obox_overlap_volume(a, b) == pytest.approx(mc, rel=0.02)
-
-
 def test_corner_cavity_is_shortened_until_it_clears():
     """Two runs at 90 degrees: ``a`` faces -y (its cavity fills y in [-0.6, 0], x in [0, 0.6]);
     ``b`` faces +x at x = 1.3 over y in [-0.6, 0] (its cavity runs toward -x). The mesh shows a wall 0.9 m behind ``b``
@@ -224,7 +191,9 @@ def test_corner_cavity_is_shortened_until_it_clears():
     pb = Part("b", "revolute", Axis((1.3, -0.6, 0.45), (0.0, 0.0, -1.0)), (0.0, 1.57), fb)
 
     def ev(pid, wall, n):
-        return Evidence(pid, "cabinet", "", wall, n, {}, None, [], None, None, TF, wall, n, "wall", 0.0)
+        return DepthEvidence(part_id=pid, template="cabinet", reason="", wall=wall, wall_points=n, caps={},
+                             carcass_depth=None, tracks=[], blocking=None, blocking_id=None, start=TF, extent=wall,
+                             support=n, source="wall", floor_z=0.0)
 
     cfg = InteriorsConfig(fit=FitConfig(overlap_tol=0.0))
     fit = fit_depths([pa, pb], [ev("a", 0.6, 5000), ev("b", 0.9, 200)], cfg)
@@ -234,7 +203,7 @@ def test_corner_cavity_is_shortened_until_it_clears():
     assert 0.6 < db < 0.69  # shortened to where the cavities meet (0.68), not flattened
     ta = build_template(pa, "cabinet", TF, float(da), cfg.template)
     tb = build_template(pb, "cabinet", TF, float(db), cfg.template)
-    assert obox_overlap_volume(ta.outer, tb.outer) / 0.42 < 1e-3  # < 1 mm of intrusion over the front's area
+    assert overlap_volume(ta.outer, tb.outer) / 0.42 < 1e-3  # < 1 mm of intrusion over the front's area
 
 
 def test_template_kinds_and_tracks():
@@ -253,7 +222,7 @@ def test_template_kinds_and_tracks():
     assert ev["out"].tracks == ["in"] and ev["out"].start == pytest.approx(0.025 + TF)
     a, b = res.interiors
     assert a.template == b.template == "cabinet"
-    assert obox_overlap_volume(a.outer, b.outer) < 1e-9  # the 2 cm where the panels overlap is split
+    assert overlap_volume(a.outer, b.outer) < 1e-9  # the 2 cm where the panels overlap is split
     assert abs(a.start + a.depth - (D + TF)) < 0.01 and abs(b.start + b.depth - (D + TF + 0.025)) < 0.01
 
 
@@ -293,34 +262,17 @@ def test_interior_colours(fitted):
     it = {x.part_id: x for x in res.interiors}["door"]
     rng = np.random.default_rng(0)
     front = np.clip(rng.normal([0.6, 0.4, 0.2], 0.02, (100, 3)), 0, 1)
-    carcass = np.clip(rng.normal([0.9, 0.9, 0.85], 0.03, (50, 3)), 0, 1)
-    tx = interior_colours(it, front, carcass, TextureConfig())
-    assert tx.source == "carcass" and set(tx.base) == set(it.wall_names)
+    tx = interior_colours(it, front, TextureConfig())
+    assert tx.source == "front" and set(tx.base) == set(it.wall_names)
     assert np.all(tx.base["back"] < tx.base["left"])  # deeper is darker
     assert np.all(tx.base["top"] < tx.base["bottom"])  # the ceiling is shaded
-    assert np.all(tx.base["left"] <= np.array([0.9, 0.9, 0.85]) + 0.02)
+    assert np.all(tx.base["left"] <= np.array([0.6, 0.4, 0.2]) + 0.02)
     assert tx.patch.shape == (32, 32, 3) and abs(tx.patch.mean() - 1) < 0.02
-    assert interior_colours(it, front, carcass[:3], TextureConfig()).source == "front"  # too few carcass samples
-    assert interior_colours(it, front[:0], None, TextureConfig()).source == "default"
+    assert interior_colours(it, front[:3], TextureConfig()).source == "default"  # too few samples
+    grey = interior_colours(it, front[:0], TextureConfig())
+    assert grey.source == "default" and np.allclose(grey.base["bottom"], grey.base["bottom"][0])
     with pytest.raises(ConfigError, match="matfuse"):
-        interior_colours(it, front, carcass, TextureConfig(texturer="learned"))
-
-
-def test_observed_colours_respects_occlusion():
-    from drawer_lib.geometry.camera import Camera, Intrinsics, invert_rigid, look_at_opencv
-    from drawer_lib.geometry.raycast import Raycaster
-
-    wall = trimesh.creation.box(extents=(2.0, 0.01, 2.0))  # a panel at y = 0
-    blocker = trimesh.creation.box(extents=(0.2, 0.01, 0.2))
-    blocker.apply_translation((0.5, -0.5, 0.0))
-    mesh = trimesh.util.concatenate([wall, blocker])
-    cam = Camera(Intrinsics.from_fovy(np.deg2rad(60), 64, 48),
-                 invert_rigid(look_at_opencv(np.array([0.0, -2.0, 0.0]), np.zeros(3), np.array([0, 0, 1.0]))))
-    img = np.zeros((48, 64, 3), np.uint8)
-    img[...] = (200, 100, 50)
-    pts = np.array([[0.0, -0.006, 0.0], [0.625, -0.006, 0.0]])  # the second hides behind the blocker
-    rgb = observed_colours(pts, [cam], [img], Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces)))
-    assert rgb.shape == (1, 3) and np.allclose(rgb[0], np.array([200, 100, 50]) / 255)
+        interior_colours(it, front, TextureConfig(texturer="learned"))
 
 
 def test_config_validation():

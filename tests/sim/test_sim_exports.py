@@ -73,13 +73,13 @@ def test_urdf_loads_with_the_same_joints(twin, tmp_path):
     for p in twin.parts:
         T = robot.get_transform(frame_to=p.id, frame_from="world")
         for col, s in zip(robot.link_map[p.id].collisions, p.collision):
-            np.testing.assert_allclose((T @ col.origin)[:3, 3], s.center, atol=1e-11)
-            np.testing.assert_allclose((T @ col.origin)[:3, :3], s.rotation, atol=1e-12)
+            np.testing.assert_allclose((T @ col.origin)[:3, 3], s.box.center, atol=1e-11)
+            np.testing.assert_allclose((T @ col.origin)[:3, :3], s.box.rotation, atol=1e-12)
     static = robot.link_map["static"]
     tilted = twin.static_collision[-6]
     col = [c for c in static.collisions if c.geometry.box is not None][-6]
-    np.testing.assert_allclose(col.origin[:3, :3], tilted.rotation, atol=1e-12)
-    np.testing.assert_allclose(col.geometry.box.size, 2 * tilted.half, atol=1e-12)
+    np.testing.assert_allclose(col.origin[:3, :3], tilted.box.rotation, atol=1e-12)
+    np.testing.assert_allclose(col.geometry.box.size, 2 * tilted.box.half, atol=1e-12)
     n_mesh = 0
     for lk in robot.link_map.values():  # mesh files are relative to the URDF and exist
         for c in lk.collisions + lk.visuals:
@@ -167,8 +167,8 @@ def test_cube_collider_is_placed_like_the_box(twin, tmp_path):
     prim = stage.GetPrimAtPath(f"/World/static/col{k}")
     M = np.array(UsdGeom.XformCache().GetLocalToWorldTransform(prim)).T  # column-vector convention
     size = UsdGeom.Cube(prim).GetSizeAttr().Get()
-    np.testing.assert_allclose(M[:3, :3] * size / 2, tilted.rotation * tilted.half, atol=1e-6)
-    np.testing.assert_allclose(M[:3, 3], tilted.center, atol=1e-9)
+    np.testing.assert_allclose(M[:3, :3] * size / 2, tilted.box.rotation * tilted.box.half, atol=1e-6)
+    np.testing.assert_allclose(M[:3, 3], tilted.box.center, atol=1e-9)
 
 
 def test_joint_frame_is_a_rotation_with_the_axis_first():

@@ -63,8 +63,8 @@ def test_geometry_stays_in_the_world_frame(kitchen):
     for p in twin.parts:
         for k, s in enumerate(p.collision):
             g = _id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{p.id}/col{k}")
-            np.testing.assert_allclose(d.geom_xpos[g], s.center, atol=1e-9)
-            np.testing.assert_allclose(m.geom_size[g], s.half, atol=1e-12)
+            np.testing.assert_allclose(d.geom_xpos[g], s.box.center, atol=1e-9)
+            np.testing.assert_allclose(m.geom_size[g], s.box.half, atol=1e-12)
     cup = twin.rigid[1]
     g = _id(m, mujoco.mjtObj.mjOBJ_GEOM, "cup_1/col0")
     mid = m.geom_dataid[g]
@@ -80,11 +80,11 @@ def test_masses_are_density_times_volume(kitchen):
     geoms at the same density (mass, centre, full inertia), for boxes and the cup's mesh."""
     twin, m = kitchen
     drawer = twin.parts[0]
-    vol = sum(8 * np.prod(s.half) for s in drawer.collision)
+    vol = sum(8 * np.prod(s.box.half) for s in drawer.collision)
     assert m.body_mass[_id(m, mujoco.mjtObj.mjOBJ_BODY, drawer.id)] == pytest.approx(600.0 * vol, rel=1e-12)
     door = twin.parts[1]
     assert m.body_mass[_id(m, mujoco.mjtObj.mjOBJ_BODY, door.id)] == pytest.approx(
-        600.0 * 8 * np.prod(door.collision[0].half), rel=1e-12)
+        600.0 * 8 * np.prod(door.collision[0].box.half), rel=1e-12)
 
     spec = build_spec(twin)
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE

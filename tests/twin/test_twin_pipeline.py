@@ -25,11 +25,11 @@ from drawer_lib.viewer.scene import load_twin_scene
 
 
 def gaussians_of(model: TwinModel) -> dict:
-    g = {"static": concat([box_surface_gaussians(s.center, s.rotation, s.half, np.array([0.6, 0.6, 0.6]), 0.05)
+    g = {"static": concat([box_surface_gaussians(s.box, np.array([0.6, 0.6, 0.6]), 0.05)
                            for s in model.static_collision if s.kind == "box"])}
     for k, b in enumerate(model.parts):
         col = np.array([[0.9, 0.2, 0.2], [0.2, 0.9, 0.2], [0.2, 0.2, 0.9]])[k % 3]
-        g[b.id] = concat([box_surface_gaussians(s.center, s.rotation, s.half, col, 0.02) for s in b.collision])
+        g[b.id] = concat([box_surface_gaussians(s.box, col, 0.02) for s in b.collision])
     return g
 
 

@@ -21,7 +21,7 @@ BODY_COLORS = {"static": (0.7, 0.7, 0.7), "drawer_0": (0.9, 0.15, 0.1), "door_0"
 
 
 def _box_gaussians(shapes, color, spacing):
-    gs = [box_surface_gaussians(s.center, s.rotation, s.half, np.asarray(color), spacing, sh_degree=0)
+    gs = [box_surface_gaussians(s.box, np.asarray(color), spacing, sh_degree=0)
           for s in shapes if s.kind == "box"]
     return concat(gs) if gs else None
 
