@@ -38,10 +38,11 @@ $(VENV)/.installed: pyproject.toml Makefile
 CI_DIR ?= /tmp/drawer_ci
 ci-dashboard: setup ## the quick experiment (kitchen_tiny) in a clone of HEAD, built as `make run` builds, its dashboard against .ci/baseline_quick.json
 	rm -rf $(CI_DIR) && git clone -q . $(CI_DIR) && ln -s $(abspath $(VENV)) $(CI_DIR)/.venv
-	cd $(CI_DIR) && $(BIN)/python scripts/compose_params.py experiment=quick
-	cd $(CI_DIR) && PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS)
+	# PYTHONPATH: the clone's drawer_lib, not the checkout the shared .venv's editable install points to
+	cd $(CI_DIR) && PYTHONPATH=$(CI_DIR) $(BIN)/python scripts/compose_params.py experiment=quick
+	cd $(CI_DIR) && PYTHONPATH=$(CI_DIR) PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS)
 	mkdir -p reports/ci
-	cd $(CI_DIR) && $(BIN)/python scripts/ci_dashboard.py; rc=$$?; cp -r $(CI_DIR)/reports/ci/. $(CURDIR)/reports/ci/; exit $$rc
+	cd $(CI_DIR) && PYTHONPATH=$(CI_DIR) $(BIN)/python scripts/ci_dashboard.py; rc=$$?; cp -r $(CI_DIR)/reports/ci/. $(CURDIR)/reports/ci/; exit $$rc
 
 params: setup ## write params.yaml from conf/
 	$(BIN)/python scripts/compose_params.py

@@ -39,13 +39,20 @@ LAYOUT = {
                   "face_labels": "decompose/face_labels.npz", "mesh": "decompose/perception_mesh.ply"},
     "articulate": {"dir": "articulate", "parts": "articulate/parts.json", "decisions": "articulate/decisions.json"},
     "evaluate": {"dir": "evaluate", "matches": "evaluate/matches.json"},
-    "complete": {"dir": "complete", "index": "complete/complete.json"},
+    "complete": {"dir": "complete", "index": "complete/complete.json", "meshes": "complete/meshes",
+                 "collision": "complete/collision", "gaussians": "complete/gaussians"},
     "simulate": {"dir": "simulate", "tracks": "simulate/tracks.npz", "motion": "simulate/motion.json"},
     "stability": {"dir": "stability", "matrix": "stability/matrix.csv", "heatmap": "stability/heatmap.png",
                   "choice": "stability/choice.json"},
-    "twin": {"dir": "twin", "mjcf": "twin/scene.xml", "urdf": "twin/urdf/scene.urdf", "usd": "twin/scene.usda",
-             "index": "twin/twin.json", "gaussians": "twin/gaussians", "renders": "twin/renders"},
-    "appearance": {"dir": "appearance", "model": "model", "renders": "renders"},  # inside appearance/<variant>/
+    "twin": {"dir": "twin", "mjcf": "twin/scene.xml", "mjcf_assets": "twin/assets", "urdf": "twin/urdf/scene.urdf",
+             "urdf_meshes": "twin/urdf/meshes", "usd": "twin/scene.usda", "index": "twin/twin.json",
+             "gaussians": "twin/gaussians", "checks": "twin/checks.json", "glb": "twin/visual.glb",
+             "recording": "twin/open_parts.html", "recording_viser": "twin/open_parts.viser", "renders": "twin/renders",
+             "renders_index": "twin/renders/index.json", "render_scores": "twin/renders/scores.json",
+             "contact_sheet": "twin/renders/contact_sheet.png"},
+    "appearance": {"dir": "appearance", "model": "model", "renders": "renders",  # inside appearance/<variant>/
+                   "gaussians": "model/gaussians.ply", "binding": "model/binding.npz",
+                   "anchor_mesh": "model/anchor_mesh.ply", "textured_mesh": "model/textured_mesh.ply"},
     "report": {"table": "table.md", "table_json": "table.json", "plot": "curves.png",  # inside reports/<name>/
                "index": "index.html", "summary": "summary.md", "extremes": "extremes.json"},  # in reports/
     "metrics": "metrics.json",  # in every stage folder

@@ -27,10 +27,10 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from drawer_lib.report.markdown import md_table  # noqa: E402
+from drawer_lib.report.markdown import md_table
+
+ROOT = Path(__file__).resolve().parent.parent
 
 VARIANTS = ("textured_mesh", "static_gs", "movable_gs", "movable_gs_ste")
 KEYS = ("psnr", "ssim", "lpips", "n_gaussians", "train_s", "wall_s")

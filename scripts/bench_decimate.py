@@ -27,27 +27,26 @@ import argparse
 import csv
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-import trimesh  # noqa: E402
+import numpy as np
+import torch
+import trimesh
+
+
+from drawer_lib.io.capture import load_capture
+from drawer_lib.mesh.clean import CleanConfig, clean_mesh
+from drawer_lib.mesh.config import MeshConfig
+from drawer_lib.geometry.isosurface import marching_cubes_mesh, sdf_grid
+from drawer_lib.mesh.pipeline import extract_mesh
+from drawer_lib.metrics.geometry import SurfaceDistance, sample_surface
+from drawer_lib.report.markdown import md_table
+from drawer_lib.sdf.io import load_field
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from drawer_lib.io.capture import load_capture  # noqa: E402
-from drawer_lib.mesh.clean import CleanConfig, clean_mesh  # noqa: E402
-from drawer_lib.mesh.config import MeshConfig  # noqa: E402
-from drawer_lib.geometry.isosurface import marching_cubes_mesh, sdf_grid  # noqa: E402
-from drawer_lib.mesh.pipeline import extract_mesh  # noqa: E402
-from drawer_lib.metrics.geometry import SurfaceDistance, sample_surface  # noqa: E402
-from drawer_lib.report.markdown import md_table  # noqa: E402
-from drawer_lib.sdf.io import load_field  # noqa: E402
 
 SCENE = ROOT / "out" / "kitchen_small"
 FRACTIONS = (0.1, 0.3, 0.5)

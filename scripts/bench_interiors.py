@@ -17,7 +17,6 @@ Kitchens:
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -25,22 +24,22 @@ import numpy as np
 import trimesh
 from omegaconf import OmegaConf
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from drawer_lib.complete.interiors.config import InteriorsConfig  # noqa: E402
-from drawer_lib.complete.interiors.drawer_rule import drawer_rule_interiors  # noqa: E402
-from drawer_lib.complete.interiors.fit import build_interiors  # noqa: E402
-from drawer_lib.config.typed import to_typed  # noqa: E402
-from drawer_lib.geometry.camera import Intrinsics, invert_rigid  # noqa: E402
-from drawer_lib.io.parts import Axis, Front, Part, PartsFile, read_parts  # noqa: E402
-from drawer_lib.metrics.geometry import gt_views, sample_surface, seen_mask  # noqa: E402
-from drawer_lib.metrics.interiors import interior_depth_error, summarise_depth_errors  # noqa: E402
-from drawer_lib.synth.camera_path import camera_path  # noqa: E402
-from drawer_lib.synth.config import SynthConfig  # noqa: E402
-from drawer_lib.synth.gt import layout_mesh, layout_parts  # noqa: E402
-from drawer_lib.synth.layout import sample_layout  # noqa: E402
-from drawer_lib.synth.splits import split_synth  # noqa: E402
+from drawer_lib.complete.interiors.config import InteriorsConfig
+from drawer_lib.complete.interiors.drawer_rule import drawer_rule_interiors
+from drawer_lib.complete.interiors.fit import build_interiors
+from drawer_lib.config.typed import to_typed
+from drawer_lib.geometry.camera import Intrinsics, invert_rigid
+from drawer_lib.io.parts import Axis, Front, Part, PartsFile, read_parts
+from drawer_lib.metrics.geometry import gt_views, sample_surface, seen_mask
+from drawer_lib.metrics.interiors import interior_depth_error, summarise_depth_errors
+from drawer_lib.synth.camera_path import camera_path
+from drawer_lib.synth.config import SynthConfig
+from drawer_lib.synth.gt import layout_mesh, layout_parts
+from drawer_lib.synth.layout import sample_layout
+from drawer_lib.synth.splits import split_synth
+
+ROOT = Path(__file__).resolve().parent.parent
 
 N_POINTS = 300_000
 

@@ -8,26 +8,32 @@ against the true ones after a similarity alignment.
 """
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from drawer_lib.capture.build import build_capture
+from drawer_lib.capture.config import CaptureConfig, SceneConfig, VideoSource
+from drawer_lib.config.compose import compose_config
+from drawer_lib.config.typed import to_typed
+from drawer_lib.io.capture import load_capture
+from drawer_lib.report.markdown import md_row, md_table
+from drawer_lib.sfm.video import write_video
+
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
-
-from helpers import load_scene, render_capture, sensor_cfg  # noqa: E402
-
-from drawer_lib.capture.config import SceneConfig, VideoSource  # noqa: E402
-from drawer_lib.io.capture import load_capture  # noqa: E402
-from drawer_lib.report.markdown import md_row, md_table  # noqa: E402
-from drawer_lib.sfm.video import write_video  # noqa: E402
 
 COLS = ["video_frames_read", "video_frames_kept", "video_frames_registered", "registered_fraction",
         "pose_rot_err_median_deg", "pose_center_err_median_m", "pose_center_err_rel", "gravity_err_deg",
         "scale_to_reference", "sfm_points", "sfm_s"]
+
+
+def capture(scene: SceneConfig, overrides: list[str], out: Path) -> dict:
+    """The capture of ``scene`` with the capture config composed with ``overrides``; its metrics."""
+    cap = to_typed(CaptureConfig, compose_config(ROOT / "conf", overrides).capture, "capture")
+    out.mkdir(parents=True)
+    return build_capture("bench_video", scene, cap, out, np.random.default_rng(0), ROOT)[1]
 
 
 def main() -> None:
@@ -36,11 +42,11 @@ def main() -> None:
     ap.add_argument("--quality", type=float, nargs="+", default=[10.0], help="imageio-ffmpeg quality (0-10)")
     ap.add_argument("--matcher", default="sequential", choices=["sequential", "exhaustive"])
     a = ap.parse_args()
-    scene = load_scene(a.scene)
+    scene = to_typed(SceneConfig, compose_config(ROOT / "conf", [f"scene={a.scene}"]).scene, f"conf/scene/{a.scene}.yaml:")
     with tempfile.TemporaryDirectory(prefix="bench_video_") as tmp:
         d = Path(tmp)
         t = time.perf_counter()
-        render_capture(scene, sensor_cfg(depth="exact", mono="off", detections="off"), d / "truth")
+        capture(scene, ["capture/depth=exact", "capture/mono=off", "capture/detections=off"], d / "truth")
         print(f"rendered {a.scene} in {time.perf_counter() - t:.1f} s")
         cap = load_capture(d / "truth")
         frames = [cap.image(i) for i in range(len(cap.frames))]
@@ -49,7 +55,7 @@ def main() -> None:
             vid = d / f"q{q:g}.mp4"
             write_video(vid, frames, fps=10, quality=q)
             vs = SceneConfig(source="video", video=VideoSource(str(vid), str(d / "truth")))
-            _, m = render_capture(vs, sensor_cfg(matcher=a.matcher), d / f"cap_q{q:g}")
+            m = capture(vs, [f"capture.video.matcher={a.matcher}"], d / f"cap_q{q:g}")
             mb = vid.stat().st_size / 1e6
             print(md_row([f"{q:g}", f"{mb:.2f}", *(f"{m.get(c, np.nan):.4g}" for c in COLS)]))
 

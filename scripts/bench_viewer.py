@@ -13,21 +13,19 @@ markdown table.
 
 import argparse
 import shutil
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-import drawer_lib  # noqa: E402, F401  (before torch: the library's OpenMP wait policy, as the viewer runs)
-import torch  # noqa: E402
-import viser  # noqa: E402
-from drawer_lib.report.markdown import md_table  # noqa: E402
-from drawer_lib.splat.gaussians import concat  # noqa: E402
-from drawer_lib.splat.ply import read_gaussian_ply, write_gaussian_ply  # noqa: E402
-from drawer_lib.viewer.app import TwinViewer  # noqa: E402
-from drawer_lib.viewer.browser import HeadlessChromium  # noqa: E402
-from drawer_lib.viewer.scene import load_twin_scene  # noqa: E402
+import drawer_lib  # noqa: F401  (before torch: the library's OpenMP wait policy, as the viewer runs)
+import torch
+import viser
+from drawer_lib.report.markdown import md_table
+from drawer_lib.splat.gaussians import concat
+from drawer_lib.splat.ply import read_gaussian_ply, write_gaussian_ply
+from drawer_lib.viewer.app import TwinViewer
+from drawer_lib.viewer.browser import HeadlessChromium
+from drawer_lib.viewer.scene import load_twin_scene
 
 
 def replicated(twin: Path, k: int, tmp: Path) -> Path:

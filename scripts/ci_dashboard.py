@@ -16,11 +16,11 @@ from pathlib import Path
 
 import yaml
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from drawer_lib.paths import LAYOUT  # noqa: E402
-from drawer_lib.report.ci import dashboard, headline  # noqa: E402
+from drawer_lib.paths import LAYOUT
+from drawer_lib.report.ci import dashboard, headline
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def main() -> int:

@@ -12,11 +12,9 @@ real run; no evaluation, nothing written.
 import argparse
 import cProfile
 import pstats
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 
 def main() -> None:

@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """Profile one DVC stage in place: runs the stage's own ``cmd`` (read from dvc.yaml through DVC,
-so the profile is of exactly what ``dvc repro`` runs) in this process under cProfile, prints the
-stage's wall time and its top functions by own and by cumulative time, and keeps the raw profile
-(``--out``, for snakeviz / ``pstats``).
+so the profile is of exactly what ``dvc repro`` runs) under cProfile (``python -m cProfile -m
+stages.<name>`` in the project root), prints the stage's wall time and its top functions by own
+and by cumulative time, and keeps the raw profile (``--out``, for snakeviz / ``pstats``).
 
 The stage writes its outputs where it always does. Afterwards they are restored from the DVC
 cache (``dvc checkout``) unless ``--keep``, so the workspace stays what ``dvc.lock`` records
@@ -13,17 +13,15 @@ before (``dvc repro <target>``), otherwise there is nothing to restore.
     python scripts/profile_stage.py sdf@kitchen_small sdf.neural.steps=200   # Hydra overrides
     python scripts/profile_stage.py geometry@kitchen_small-neural_mono --cmd 0 sdf.neural.steps=100
 
-Only the main thread is profiled; time spent in numba's or torch's worker threads shows up as the
+Only the stage's main thread is profiled; time spent in numba's or torch's worker threads shows up as the
 call that launched them. Numba compiles on the first call of a kernel in a fresh process (cached
 on disk afterwards): run twice when compile time would blur the picture.
 """
 
 import argparse
-import cProfile
 import io
 import os
 import pstats
-import runpy
 import shlex
 import subprocess
 import sys
@@ -65,26 +63,16 @@ def main() -> None:
     args = ap.parse_intermixed_args()
 
     module, *stage_args = stage_cmd(args.target, args.cmd)
-    os.chdir(ROOT)
-    sys.path.insert(0, str(ROOT))
-    sys.argv = [module, *stage_args, *args.overrides]
-    prof = cProfile.Profile()
-    t0 = time.perf_counter()
-    code = 0
-    prof.enable()
-    try:
-        runpy.run_module(module, run_name="__main__", alter_sys=True)
-    except SystemExit as e:  # Hydra apps exit through sys.exit
-        code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
-    finally:
-        prof.disable()
-    wall = time.perf_counter() - t0
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / f"{args.target.replace('/', '_')}.prof"
-    prof.dump_stats(str(path))
+    t0 = time.perf_counter()
+    code = subprocess.run([sys.executable, "-m", "cProfile", "-o", str(path), "-m", module, *stage_args,
+                           *args.overrides], cwd=ROOT).returncode
+    wall = time.perf_counter() - t0
+    prof = pstats.Stats(str(path))
     for key in ("tottime", "cumulative"):
         buf = io.StringIO()
-        pstats.Stats(prof, stream=buf).strip_dirs().sort_stats(key).print_stats(args.top)
+        pstats.Stats(str(path), stream=buf).strip_dirs().sort_stats(key).print_stats(args.top)
         body = buf.getvalue()
         print(f"\n== {args.target}: top {args.top} by {key} ==\n" + body[body.find("   ncalls"):])
     print(f"{args.target}: {wall:.1f} s under the profiler (exit {code}); profile in {path}")

@@ -27,7 +27,7 @@ def main(cfg: DictConfig) -> None:
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture, check_files=False)
     inp = CompleteInputs(src.parts, src.mesh, src.decompose, src.field,
-                         src.appearance_dir(cc.gaussians.variant) / "model")
+                         src.appearance_dir(cc.gaussians.variant))
     with stage_run("complete", dst.stage_dir("complete"), seed=cfg.seed) as run:
         run.metrics.update(run_complete(cc, cap, inp, run, density))
 

@@ -3,10 +3,10 @@
 from pathlib import Path
 
 import numpy as np
-from hydra import compose, initialize_config_dir
 
 from drawer_lib.capture.build import build_capture
 from drawer_lib.capture.config import CaptureConfig, SceneConfig
+from drawer_lib.config.compose import compose_config
 from drawer_lib.config.typed import to_typed
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -14,8 +14,7 @@ CONF = ROOT / "conf"
 
 
 def compose_cfg(overrides: list[str] | None = None, config_name: str = "config"):
-    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        return compose(config_name=config_name, overrides=list(overrides or []))
+    return compose_config(CONF, overrides, config_name)
 
 
 def load_scene(name: str) -> SceneConfig:

@@ -70,7 +70,7 @@ def labelled_fronts(kitchen: str, decisions: Path, gt: PartsFile) -> list[Row]:
     try:
         segs = json.loads(Path(decisions).read_text())["segments"]
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise InputError(f"{decisions}: not a decisions.json ({e})") from None
+        raise InputError(f"{decisions}: not an articulation decisions file ({e})") from None
     rows = []
     for r in segs:
         if "features" not in r:

@@ -191,15 +191,6 @@ class RigidConfig:
 
 
 @dataclass(frozen=True)
-class CompleteGeometryConfig:
-    """The three geometric steps of the ``complete`` stage together."""
-
-    cut: CutConfig = field(default_factory=CutConfig)
-    static: StaticCollisionConfig = field(default_factory=StaticCollisionConfig)
-    rigid: RigidConfig = field(default_factory=RigidConfig)
-
-
-@dataclass(frozen=True)
 class GaussiansConfig:
     """The bodies' Gaussians: the appearance variant whose model they come from
     (``out/<scene>/appearance/<variant>/model``), and the flat Gaussians that cover the

@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 
 from drawer_lib.errors import InputError
+from drawer_lib.paths import stage_name
 from drawer_lib.bodies import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
 from drawer_lib.splat.ply import write_gaussian_ply
 from drawer_lib.splat.render import Gaussians
@@ -32,7 +33,7 @@ STATIC = "static"
 def _shape_json(s: Shape, folder: Path, stem: str) -> dict:
     if s.kind == "box":
         return {"kind": "box", **s.box.to_json()}
-    rel = f"collision/{stem}.ply"
+    rel = f"{stage_name('complete', 'collision')}/{stem}.ply"
     trimesh.Trimesh(s.vertices, s.faces, process=False).export(folder / rel)
     return {"kind": "mesh", "file": rel}
 
@@ -41,7 +42,7 @@ def _mesh_file(shapes: list[Shape], folder: Path, body: str) -> list[str]:
     meshes = [trimesh.Trimesh(*s.triangles(), process=False) for s in shapes]
     if not meshes:
         return []
-    rel = f"meshes/{body}.ply"
+    rel = f"{stage_name('complete', 'meshes')}/{body}.ply"
     trimesh.util.concatenate(meshes).export(folder / rel)
     return [rel]
 
@@ -53,14 +54,14 @@ def write_complete(folder: Path, model: TwinModel, gaussians: dict[str, Gaussian
     exist and be empty: the stage runner renames it into place)."""
     folder = Path(folder)
     for sub in ("meshes", "collision", "gaussians"):
-        (folder / sub).mkdir()
+        (folder / stage_name("complete", sub)).mkdir()
     bodies = []
 
     def body(bid: str, kind: str, visual, collision, density, extra: dict) -> dict:
         g = gaussians.get(bid)
         gfile = None
         if g is not None and len(g.means):
-            gfile = f"gaussians/{bid}.ply"
+            gfile = f"{stage_name('complete', 'gaussians')}/{bid}.ply"
             write_gaussian_ply(folder / gfile, g)
         return {"id": bid, "kind": kind, "visual": _mesh_file(visual, folder, bid),
                 "collision": [_shape_json(s, folder, f"{bid}.{k}") for k, s in enumerate(collision)],
@@ -74,8 +75,9 @@ def write_complete(folder: Path, model: TwinModel, gaussians: dict[str, Gaussian
                             "limits": list(map(float, p.limits)), "interior": interiors.get(p.id, {})}))
     for r in model.rigid:
         bodies.append(body(r.id, "rigid", r.visual, r.collision, r.density, {}))
-    (folder / "complete.json").write_text(json.dumps({"schema": SCHEMA, "bodies": bodies, "info": info}, indent=1))
-    return folder / "complete.json"
+    index = folder / stage_name("complete", "index")
+    index.write_text(json.dumps({"schema": SCHEMA, "bodies": bodies, "info": info}, indent=1))
+    return index
 
 
 def _read_shape(d: dict, folder: Path, what: str) -> Shape:
@@ -98,7 +100,7 @@ def _read_visual(files: list[str], folder: Path) -> list[Shape]:
 def read_complete(folder: Path) -> tuple[TwinModel, dict[str, Path], dict]:
     """(the model, {body id: its Gaussians' PLY}, the raw complete.json) of a ``complete/``."""
     folder = Path(folder)
-    path = folder / "complete.json"
+    path = folder / stage_name("complete", "index")
     if not path.is_file():
         raise InputError(f"{path}: missing (run the complete stage first)")
     d = json.loads(path.read_text())

@@ -50,7 +50,7 @@ from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.io.parts import read_parts
-from drawer_lib.paths import capture_name
+from drawer_lib.paths import LAYOUT, capture_name, stage_name
 from drawer_lib.runner import StageRun
 from drawer_lib.bodies import PartBody, RigidBody, Shape, TwinModel, box_shape, mesh_shape
 from drawer_lib.splat.gaussians import blend_weights, box_surface_gaussians, concat, subset
@@ -65,7 +65,7 @@ class CompleteInputs:
     mesh: Path  # mesh/mesh.ply
     decompose: Path | None  # decompose/ (perception mesh + face labels: the rigid objects' faces)
     field: Path | None  # sdf/field.pt
-    appearance: Path | None  # appearance/<variant>/model
+    appearance: Path | None  # appearance/<variant>/ (its model/)
 
 
 def _mesh(m: trimesh.Trimesh) -> list[Shape]:
@@ -138,9 +138,9 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     rigid_bodies, rigid_stats, rigid_carvers, pads = [], {}, [], []
     if m["n_rigid"]:
         rmesh, labels = mesh, None
-        if inp.decompose is not None and (inp.decompose / "perception_mesh.ply").is_file():
-            rmesh = load_mesh(inp.decompose / "perception_mesh.ply")
-            labels = np.load(inp.decompose / "face_labels.npz")["labels"]
+        if inp.decompose is not None and (inp.decompose / stage_name("decompose", "mesh")).is_file():
+            rmesh = load_mesh(inp.decompose / stage_name("decompose", "mesh"))
+            labels = np.load(inp.decompose / stage_name("decompose", "face_labels"))["labels"]
         for s in build_rigids(parts, rmesh, cfg.rigid, labels):
             rigid_bodies.append(RigidBody(s.id, _mesh(s.solid), s.pieces, s.density))
             # the object is in the scene mesh and the field too: empty the cells above its support
@@ -201,7 +201,7 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     # 6. Gaussians
     t0 = time.perf_counter()
     gauss: dict[str, Gaussians] = {}
-    if inp.appearance is not None and (inp.appearance / "gaussians.ply").is_file():
+    if inp.appearance is not None and (inp.appearance / LAYOUT["appearance"]["gaussians"]).is_file():
         gauss, interior = _body_gaussians(cfg, inp.appearance, arts, cut_cfg=cfg.cut, rigid=rigid_bodies,
                                           interiors=interiors)
         if cfg.gaussians.cull_visible is not None and any(v.any() for v in interior.values()):
@@ -261,16 +261,18 @@ def cull_visible_interiors(gauss: dict[str, Gaussians], interior: dict[str, np.n
     return out, n
 
 
-def _body_gaussians(cfg: CompleteConfig, model_dir: Path, arts, cut_cfg, rigid, interiors
+def _body_gaussians(cfg: CompleteConfig, variant_dir: Path, arts, cut_cfg, rigid, interiors
                     ) -> tuple[dict[str, Gaussians], dict[str, np.ndarray]]:
-    """Split the appearance model's Gaussians by body and add the interiors' (module doc, 6).
-    Returns the bodies' Gaussians and, per body, which of them are interior ones."""
-    g = read_gaussian_ply(model_dir / "gaussians.ply")
-    binding = np.load(model_dir / "binding.npz")
-    anchor = trimesh.load(model_dir / "anchor_mesh.ply", process=False, force="mesh")
+    """Split the appearance model's Gaussians (``variant_dir``: ``appearance/<variant>/``) by body
+    and add the interiors' (module doc, 6). Returns the bodies' Gaussians and, per body, which
+    of them are interior ones."""
+    g = read_gaussian_ply(variant_dir / LAYOUT["appearance"]["gaussians"])
+    binding = np.load(variant_dir / LAYOUT["appearance"]["binding"])
+    anchor = trimesh.load(variant_dir / LAYOUT["appearance"]["anchor_mesh"], process=False, force="mesh")
     face = binding["mesh_face"]
     if len(face) != len(g.means) or face.max(initial=-1) >= len(anchor.faces):
-        raise InputError(f"{model_dir}: binding.npz does not match gaussians.ply / anchor_mesh.ply")
+        raise InputError(f"{variant_dir / LAYOUT['appearance']['binding']}: does not match "
+                         f"{LAYOUT['appearance']['gaussians']} / {LAYOUT['appearance']['anchor_mesh']}")
     owner_face = body_owner(np.asarray(anchor.triangles_center), list(arts), cut_cfg)
     owner = owner_face[face]
     names = [STATIC] + [p.id for p in arts]

@@ -165,7 +165,7 @@ def close_shell(vertices: Float[np.ndarray, "V 3"], faces: Int[np.ndarray, "F 3"
     if frac > cfg.max_boundary_frac:
         return _hull(V, support_z), "hull", f"{frac:.0%} of the edges are boundary edges"
     B = e[bnd]  # [E, 2] directed boundary edges a -> b as their faces run
-    n_loop, lab = connected_components(coo_matrix((np.ones(len(B)), (B[:, 0], B[:, 1])), shape=(len(V), len(V))),
+    _, lab = connected_components(coo_matrix((np.ones(len(B)), (B[:, 0], B[:, 1])), shape=(len(V), len(V))),
                                        directed=False)
     loop_of_edge = lab[B[:, 0]]
     loops, loop_of_edge = np.unique(loop_of_edge, return_inverse=True)  # only components with edges

@@ -257,7 +257,7 @@ def merge_boxes(occ: Bool[np.ndarray, "X Y Z"], overlap: bool = True, fill_tol: 
     a = np.ascontiguousarray(np.transpose(np.asarray(occ, bool), (2, 1, 0)))  # [Z, Y, X]: x fastest
     free = a.copy()
     grow = a if overlap else free
-    Zn, Yn, Xn = a.shape
+    _, Yn, Xn = a.shape
     need = 1.0 - fill_tol - 1e-12
 
     def run(frac: np.ndarray) -> int:  # length of the leading run of layers full enough
@@ -380,7 +380,7 @@ def static_collision(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, field=No
     t1 = time.perf_counter()
     if cfg.source == "field":
         if field is None:
-            raise InputError("static_collision: complete.static.source = field needs the sdf stage's field.pt "
+            raise InputError("static_collision: complete.static.source = field needs the sdf stage's field "
                              "(none given); use source: mesh for a capture without a field")
         grid = occupancy_from_field(field.sdf, np.asarray(field.lo), np.asarray(field.hi), mesh, cfg, yaw)
     else:
@@ -427,14 +427,6 @@ def union_mesh(shapes: Sequence[Shape]) -> trimesh.Trimesh:
     return trimesh.boolean.union(solids, engine="manifold")
 
 
-def free_space(field) -> Callable:
-    """points [N, 3] (world, m) -> bool [N]: where the SDF ``field`` (``.sdf``) is positive."""
-    def free(points: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return field.sdf(torch.from_numpy(np.asarray(points, np.float32))).reshape(-1).cpu().numpy() > 0
-    return free
-
-
 def collision_fidelity(shapes: Sequence[Shape], mesh: trimesh.Trimesh, n_points: int = 20_000, seed: int = 0,
                        free: Callable | None = None, probe: float = 0.01) -> dict:
     """How well collision ``shapes`` reproduce a visual ``mesh`` (world, m): Chamfer-L1 (mean of
@@ -443,7 +435,7 @@ def collision_fidelity(shapes: Sequence[Shape], mesh: trimesh.Trimesh, n_points:
     *surface* (exact point-to-triangle distance, as the geometry metrics); ``accuracy`` shapes -> mesh,
     ``completeness`` mesh -> shapes (m); F-scores at 1 and 2 cm; ``n_shapes``; ``wall_s``.
 
-    ``free``: optional points [N, 3] -> bool [N], True in free space (e.g. :func:`free_space`);
+    ``free``: optional points [N, 3] -> bool [N], True in free space (e.g. where an SDF is positive);
     then the union samples whose point ``probe`` (m) outside along their normal is free are the
     *exposed* collision surface (what can be touched), the others its hidden back, and
     ``accuracy_exposed``, ``chamfer_l1_exposed`` and ``exposed_fraction`` are added."""

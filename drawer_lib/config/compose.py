@@ -9,13 +9,22 @@ from importlib.metadata import version
 from pathlib import Path
 
 
-def compose_params(conf_dir: Path, overrides: list[str] | None = None, config_name: str = "config") -> str:
-    """The YAML text DVC would write for ``conf_dir`` with Hydra ``overrides``."""
+def compose_config(conf_dir: Path, overrides: list[str] | None = None, config_name: str = "config",
+                   version_base: str | None = "1.3"):
+    """The config tree (a ``DictConfig``) Hydra composes from ``conf_dir`` with ``overrides``, as
+    a stage's ``@hydra.main`` would (``version_base`` 1.3)."""
     from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=str(Path(conf_dir).resolve()), version_base=version_base):
+        return compose(config_name=config_name, overrides=list(overrides or []))
+
+
+def compose_params(conf_dir: Path, overrides: list[str] | None = None, config_name: str = "config") -> str:
+    """The YAML text DVC would write for ``conf_dir`` with Hydra ``overrides`` (DVC composes with
+    ``version_base=None``)."""
     from omegaconf import OmegaConf
 
-    with initialize_config_dir(config_dir=str(Path(conf_dir).resolve()), version_base=None):
-        cfg = compose(config_name=config_name, overrides=list(overrides or []))
+    cfg = compose_config(conf_dir, overrides, config_name, version_base=None)
     OmegaConf.resolve(cfg)
     return OmegaConf.to_yaml(cfg)
 

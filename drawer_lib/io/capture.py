@@ -103,7 +103,7 @@ class Capture:
     def _path(self, i: int, key: str) -> Path:
         rel = getattr(self.frames[i], key)
         if rel is None:
-            raise CaptureError(f"{self.root / 'transforms.json'}: frame {self.frames[i].file_path} has no {key}")
+            raise CaptureError(f"{self.root / capture_name('transforms')}: frame {self.frames[i].file_path} has no {key}")
         return self.root / rel
 
     # -- whole-capture views ------------------------------------------------------------------
@@ -257,7 +257,7 @@ def validate_files(cap: Capture, progress: bool = False) -> None:
     for i, fr in enumerate(tqdm(cap.frames, desc="validate capture", disable=not progress, leave=False)):
         size = image_size(cap.root / fr.file_path)
         if size != (W, H):
-            raise CaptureError(f"{cap.root / fr.file_path}: size {size[0]}x{size[1]}, transforms.json says {W}x{H}")
+            raise CaptureError(f"{cap.root / fr.file_path}: size {size[0]}x{size[1]}, {capture_name('transforms')} says {W}x{H}")
         if fr.depth_file_path is not None:
             dep = cap.depth(i)
             if dep.shape != (H, W):

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from drawer_lib.errors import CaptureError
 from drawer_lib.io.images import read_json, write_json
+from drawer_lib.paths import capture_name
 
 SCHEMA = "drawer.manifest/1"
 MODALITIES = ("rgb", "depth", "mono_depth", "mono_normal", "detections", "sparse_points", "gt")
@@ -81,7 +82,7 @@ class Manifest:
         }
 
     @staticmethod
-    def from_json(d: dict, source: str = "manifest.json") -> "Manifest":
+    def from_json(d: dict, source: str = capture_name("manifest")) -> "Manifest":
         if d.get("schema") != SCHEMA:
             raise CaptureError(f"{source}: schema {d.get('schema')!r}, expected {SCHEMA!r}")
         try:

@@ -175,7 +175,7 @@ def _bounds(b, what: str):
     return lo, hi
 
 
-def parse_parts(d: dict, source: str = "parts.json") -> PartsFile:
+def parse_parts(d: dict, source: str = "a parts file") -> PartsFile:
     """Validate a parsed ``drawer.parts/1`` document; errors name ``source`` and the part."""
     if not isinstance(d, dict) or d.get("schema") != SCHEMA:
         raise CaptureError(f"{source}: schema is {d.get('schema') if isinstance(d, dict) else None!r}, expected {SCHEMA!r}")

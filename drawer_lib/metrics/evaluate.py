@@ -14,7 +14,7 @@ from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import articulation_metrics, match_parts, rigid_metrics
 from drawer_lib.metrics.motion import motion_emd
-from drawer_lib.paths import capture_name
+from drawer_lib.paths import capture_name, stage_name
 from drawer_lib.runner import StageRun
 
 
@@ -46,7 +46,7 @@ def run_evaluate(cap: Capture, parts_path: Path, run: StageRun, tracks_path: Pat
         run.skip("rigid_recall", "the ground truth has no rigid object")
     motion: list[dict] = []
     if tracks_path is None:
-        run.skip("emd", "no simulated tracks given (the simulate stage's tracks.npz)")
+        run.skip("emd", f"no simulated tracks given (the simulate stage's {stage_name('simulate', 'tracks')})")
     elif not tracks_path.is_file():
         raise InputError(f"{tracks_path}: missing (run the simulate stage first)")
     elif not len(cap.test):

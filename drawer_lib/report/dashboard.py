@@ -109,7 +109,7 @@ def collect(out: Path, reports: Path, scenes: list[str], geometry_variants: list
         mpath = sp.file("stability", "matrix")
         rows = read_matrix(mpath) if mpath.is_file() else []
         hm = sp.file("stability", "heatmap")
-        sheet = sp.stage_dir("twin") / "renders" / "contact_sheet.png"
+        sheet = sp.file("twin", "contact_sheet")
         pdir = sp.root / PARETO_DIR
         pplot = pdir / LAYOUT["report"]["plot"]
         data.scenes.append(SceneData(s, mets, curves, rows, _json(sp.file("stability", "choice")),
@@ -422,8 +422,9 @@ def render(data: ReportData) -> tuple[str, str]:
             parts_md[sec].append(f"_{alt}: see index.html_\n")
 
     add("headline", _headline(data))
-    add("geometry", _geometry(data), None if data.geometry else "skipped: reports/geometry/table.json is missing")
-    add("appearance", _appearance(data), None if data.ablation else "skipped: reports/ablation/table.json is missing")
+    table = LAYOUT["report"]["table_json"]
+    add("geometry", _geometry(data), None if data.geometry else f"skipped: reports/geometry/{table} is missing")
+    add("appearance", _appearance(data), None if data.ablation else f"skipped: reports/ablation/{table} is missing")
     add("articulation", _articulation(data), "Precision = correct / predicted, recall = correct / GT (docs/formats.md); "
         "EA-score over correct revolute parts.")
     tm, tp = _motion(data)

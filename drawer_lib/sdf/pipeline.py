@@ -26,10 +26,10 @@ def _finite(r: dict[str, float]) -> dict[str, float | None]:
 
 def check_capture(cap: Capture) -> None:
     if not cap.train:
-        raise InputError(f"{cap.root / 'transforms.json'}: no train frames")
+        raise InputError(f"{cap.root / capture_name('transforms')}: no train frames")
     it = cap.intrinsics
     if it.width < 8 or it.height < 8:
-        raise InputError(f"{cap.root / 'transforms.json'}: images of {it.width}x{it.height} px are too small")
+        raise InputError(f"{cap.root / capture_name('transforms')}: images of {it.width}x{it.height} px are too small")
 
 
 def run_sdf(cfg: SdfConfig, cap: Capture, run: StageRun) -> dict:

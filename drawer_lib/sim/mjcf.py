@@ -38,13 +38,14 @@ import mujoco
 import numpy as np
 
 from drawer_lib.errors import InputError, InvariantError
+from drawer_lib.paths import stage_name
 from drawer_lib.sim.files import obj_bytes, shortest, write_entries_atomic
 from drawer_lib.bodies import MassProps, PartBody, Shape, TwinModel, axis_inertia
 from drawer_lib.sim.config import SimConfig
 
 STATIC = "static"
-MESHDIR = "assets"
-SCENE = "scene.xml"
+MESHDIR = stage_name("twin", "mjcf_assets")
+SCENE = stage_name("twin", "mjcf")
 BIT_STATIC, BIT_PART, BIT_RIGID = 1, 2, 4
 GROUP_VISUAL, GROUP_COLLISION = 2, 3
 _MIN_MASS, _MIN_INERTIA = 1e-9, 1e-12  # kg, kg·m^2
@@ -244,7 +245,7 @@ def write_mjcf(spec: mujoco.MjSpec, folder: Path | str) -> Path:
         try:
             mujoco.MjModel.from_xml_path(str(root / SCENE))
         except ValueError as e:
-            raise InvariantError(f"write_mjcf: the written scene.xml does not load: {e}") from e
+            raise InvariantError(f"write_mjcf: the written {SCENE} does not load: {e}") from e
 
     write_entries_atomic(folder, [MESHDIR, SCENE], build)
     return folder / SCENE

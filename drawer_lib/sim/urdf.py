@@ -20,11 +20,11 @@ import numpy as np
 
 from drawer_lib.sim.files import obj_bytes, shortest, write_entries_atomic
 from drawer_lib.bodies import MassProps, Shape, TwinModel
+from drawer_lib.paths import stage_name
 from drawer_lib.sim.config import SimConfig
 
-URDF_DIR = "urdf"
-URDF_FILE = "scene.urdf"
-MESH_DIR = "meshes"
+URDF_DIR, URDF_FILE = stage_name("twin", "urdf").split("/")
+MESH_DIR = stage_name("twin", "urdf_meshes").split("/")[1]  # inside URDF_DIR
 
 
 def _fmt(a) -> str:

@@ -34,12 +34,13 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, Vt
 
 from drawer_lib.errors import InvariantError
+from drawer_lib.paths import stage_name
 from drawer_lib.sim.files import write_entries_atomic
 from drawer_lib.sim.mjcf import drive_gain
 from drawer_lib.bodies import MassProps, PartBody, Shape, TwinModel
 from drawer_lib.sim.config import SimConfig
 
-USD_FILE = "scene.usda"
+USD_FILE = stage_name("twin", "usd")
 ROOT = "/World"
 
 

@@ -98,7 +98,7 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
                      "steps": tr.steps, "problem": tr.problem}
         sim_s += tr.steps * m.opt.timestep
     wall = time.perf_counter() - t0
-    np.savez_compressed(run.dir / "tracks.npz", **arrays)
+    np.savez_compressed(run.out("tracks"), **arrays)
     if parts:
         devs = [v["kinematic_dev_m"] for v in per.values() if np.isfinite(v["kinematic_dev_m"])]
         out.update(kinematic_dev_max_m=max(devs) if devs else None,
@@ -113,7 +113,7 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
         out.update(pm)
     elif parts:
         run.skip("interactions", "simulate.interactions = false")
-    write_json(run.dir / "motion.json", {"parts": per, "probes": probes})
+    write_json(run.out("motion"), {"parts": per, "probes": probes})
     return out
 
 

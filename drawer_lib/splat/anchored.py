@@ -236,7 +236,7 @@ class _AnchoredFn(torch.autograd.Function):
 
 
 def anchored_gaussians(p: AnchoredParams, frames: FaceFrames, bounds: AnchorBounds, mode: str = "ste",
-                       sh_degree_max: int = 3, fused: bool = True) -> Anchored:
+                       fused: bool = True) -> Anchored:
     """Raw parameters -> activated 3D Gaussians (positions, rotations, scales in the world).
     ``fused``: modes ``ste`` and ``free`` on CPU tensors run the numba kernels of
     ``_anchored_kernels`` (equal to this PyTorch code up to float rounding); False, or mode

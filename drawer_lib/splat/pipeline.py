@@ -9,6 +9,7 @@ from drawer_lib.errors import InputError, InvariantError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_rgb
 from drawer_lib.io.mesh import load_mesh
+from drawer_lib.paths import LAYOUT
 from drawer_lib.perturb import displace_along_normals
 from drawer_lib.runner import StageRun
 from drawer_lib.splat.anchored import anchored_gaussians, bound_activity
@@ -52,7 +53,7 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
                 raise InputError(f"{field_path}: a {lf.kind} field has no colour; set appearance.texture_source: images")
             field = lf.field
         res, info, colored = textured_mesh(cap, sc, cfg, field)
-        colored.export(model / "textured_mesh.ply")
+        colored.export(run.dir / LAYOUT["appearance"]["textured_mesh"])
         m.update(info)
         m["train_s"] = info["bake_s"]
         curve.log(0, wall_s=info["bake_s"], test_psnr=res.psnr)  # one point, like the TSDF's
@@ -72,9 +73,9 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
             raise InvariantError(f"appearance {cfg.variant}: {violation} (clip = {cfg.clip} must keep every "
                                  "Gaussian in its face bounds)")
         a = anchored_gaussians(st.params, st.frames, cfg.bounds, cfg.clip)
-        write_gaussian_ply(model / "gaussians.ply", a.gaussians)
-        write_face_binding(model / "binding.npz", st.params.face, st.frames.face_ids, a.pos2d, a.elevate)
-        sc.mesh.export(model / "anchor_mesh.ply")
+        write_gaussian_ply(run.dir / LAYOUT["appearance"]["gaussians"], a.gaussians)
+        write_face_binding(run.dir / LAYOUT["appearance"]["binding"], st.params.face, st.frames.face_ids, a.pos2d, a.elevate)
+        sc.mesh.export(run.dir / LAYOUT["appearance"]["anchor_mesh"])
         m.update({"n_gaussians": int(st.params.face.shape[0]), "steps": st.steps, "train_s": round(st.train_s, 3),
                   "stopped_by_time": st.stopped_by_time,
                   "within_budget": st.train_s <= cfg.budget_s, "within_face_bounds": violation is None, **st.counts})

@@ -14,6 +14,7 @@ from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
+from drawer_lib.paths import capture_name
 from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, bounds_violation, face_frames, init_anchored
 from drawer_lib.splat.config import AppearanceConfig
 from drawer_lib.splat.mesh_color import (colored_mesh_at_resolution, face_colors, mesh_depths, render_face_colored,
@@ -77,7 +78,7 @@ def prepare(cap: Capture, mesh: trimesh.Trimesh, cfg: AppearanceConfig) -> Scene
     if len(mesh.faces) == 0:
         raise InputError("appearance: the mesh is empty")
     if not cap.test:
-        raise InputError(f"{cap.root / 'transforms.json'}: no test frames to evaluate on")
+        raise InputError(f"{cap.root / capture_name('transforms')}: no test frames to evaluate on")
     m = decimate(mesh, cfg.max_faces)
     rc = Raycaster(np.asarray(m.vertices), np.asarray(m.faces))
     f = cfg.train_scale
@@ -128,8 +129,8 @@ def textured_mesh(cap: Capture, sc: Scene, cfg: AppearanceConfig, field=None) ->
     cnt = np.ones(len(fine.faces))
     if cfg.texture_source == "sdf":
         if field is None:
-            raise InputError("appearance.texture_source = sdf needs a neural SDF field with a colour head (sdf/field.pt "
-                             "of a neural run); use texture_source: images for a TSDF")
+            raise InputError("appearance.texture_source = sdf needs a neural SDF field with a colour head (the sdf "
+                             "stage's field of a neural run); use texture_source: images for a TSDF")
         cols = field_colors(field, np.asarray(fine.triangles_center), np.asarray(fine.face_normals))
     else:
         w_tr = np.stack([c.w2c for c in sc.train_cams])

@@ -218,16 +218,6 @@ def run_cell(case: Case, integrator: str, timestep: float, ref: Trace | None) ->
                 False, None, errs.tolist())
 
 
-def run_matrix(cases: Sequence[Case], integrators: Sequence[str], timesteps: Sequence[float],
-               progress: Callable = lambda it, **kw: it) -> list[Cell]:
-    """Every case x integrator x timestep (references first, one per case)."""
-    cells = []
-    for case in progress(cases, desc="cases", total=len(cases)):
-        ref = reference_trace(case)
-        cells += [run_cell(case, i, dt, ref) for i in integrators for dt in timesteps]
-    return cells
-
-
 @dataclass
 class Choice:
     """The integrator and the largest timestep stable with error <= ``tolerance`` on every

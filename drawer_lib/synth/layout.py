@@ -19,7 +19,7 @@ import numpy as np
 from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Front
 from drawer_lib.synth import textures as tex
-from drawer_lib.synth.config import BASE_TYPES, TALL_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
+from drawer_lib.synth.config import BASE_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
 from drawer_lib.synth.meshes import UVMesh, box_between, concat, cylinder, lathe, torus_arc
 
 OUT = np.array([0.0, -1.0, 0.0])  # outward normal of every front

@@ -39,7 +39,7 @@ from drawer_lib.io.images import write_json, write_rgb
 from drawer_lib.io.parts import Part, read_parts
 from drawer_lib.metrics.articulation import match_parts
 from drawer_lib.metrics.image import psnr, ssim
-from drawer_lib.paths import capture_name
+from drawer_lib.paths import capture_name, stage_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.checks import check_twin
 from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
@@ -127,24 +127,25 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     write_mjcf(spec, out)
     if cfg.check:
         t0 = time.perf_counter()
-        rep = check_twin(out / "scene.xml", model, sim)
+        rep = check_twin(run.out("mjcf"), model, sim)
         m["check_s"] = round(time.perf_counter() - t0, 3)
         m.update({f"sim_{k}": v for k, v in rep.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
-        write_json(out / "checks.json", rep)
+        write_json(run.out("checks"), rep)
     else:
         run.skip("checks", "twin.check = false")
     # 3: URDF, USD
     t0 = time.perf_counter()
     write_urdf(model, out, sim)
     write_usd(model, out, sim)
-    _visual_glb(model, out / "visual.glb")
+    _visual_glb(model, run.out("glb"))
     m["export_s"] = round(time.perf_counter() - t0, 3)
 
     # 4: Gaussians per body
-    (out / "gaussians").mkdir()
+    gdir = stage_name("twin", "gaussians")  # twin.json names files relative to the twin folder
+    run.out("gaussians").mkdir()
     gauss: dict[str, Gaussians] = {}
     for bid, f in gfiles.items():
-        shutil.copyfile(f, out / "gaussians" / f"{bid}.ply")
+        shutil.copyfile(f, run.out("gaussians") / f"{bid}.ply")
         gauss[bid] = read_gaussian_ply(f)
     k = next(iter(gauss.values())).sh.shape[1] if gauss else (cfg.renders.sh_degree + 1) ** 2
     static = concat([gauss.get(STATIC, _empty_gaussians(k))] + [gauss[r.id] for r in model.rigid if r.id in gauss])
@@ -153,19 +154,19 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
 
     raw = {b["id"]: b for b in cj["bodies"]}
     twin_json = {"schema": SCHEMA, "parts": [], "static": {
-        "body": "static", "gaussians": "gaussians/static.ply" if STATIC in gauss else None,
+        "body": "static", "gaussians": f"{gdir}/{STATIC}.ply" if STATIC in gauss else None,
         "collision": _collision_files(raw[STATIC]["collision"], complete_dir, out)}}
     for b in model.bodies():
         twin_json["parts"].append({"id": b.id, "kind": by_id[b.id].kind, "body": b.id, "joint": b.id,
                                    "actuator": b.id if by_id[b.id].articulated else None,
-                                   "gaussians": f"gaussians/{b.id}.ply" if b.id in gauss else None,
+                                   "gaussians": f"{gdir}/{b.id}.ply" if b.id in gauss else None,
                                    "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
                                    "interior": raw[b.id].get("interior", {})})
-    write_json(out / "twin.json", twin_json)
+    write_json(run.out("index"), twin_json)
 
     # 4b: the shareable browser recording, every part opened in turn (drawer_lib/viewer)
     if cfg.recording.enabled:
-        r = record_twin(out, out / "open_parts.html", out / "open_parts.viser", cfg.recording)
+        r = record_twin(out, run.out("recording"), run.out("recording_viser"), cfg.recording)
         m["recording_s"] = r["wall_s"]
         m["recording_mb"] = round(r["html_bytes"] / 1e6, 3)
     else:
@@ -176,13 +177,13 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     test = list(cap.test)[: rc.max_views or None]
     if not test or not model.parts:
         run.skip("renders", "no test views" if not test else "no articulated part")
-        (out / "renders").mkdir()
-        write_json(out / "renders" / "index.json", {"renders": []})
+        run.out("renders").mkdir()
+        write_json(run.out("renders_index"), {"renders": []})
         return m
     cams = cap.cameras(test)
     stems = [cap.frames[i].stem for i in test]
     bg = torch.tensor(rc.background, dtype=torch.float32)
-    rdir = out / "renders"
+    rdir = run.out("renders")
     rdir.mkdir()
     t0 = time.perf_counter()
     opened: dict[str, tuple[float, list]] = {}
@@ -197,7 +198,7 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
             f = f"{p.id}/{stem}.png"
             write_rgb(rdir / f, (v.rgb.numpy() * 255 + 0.5).astype(np.uint8))
             index.append({"id": p.id, "q": q, "file_path": cap.frames[i].file_path, "image": f})
-    write_json(rdir / "index.json", {"renders": index})
+    write_json(run.out("renders_index"), {"renders": index})
     m["render_s"] = round(time.perf_counter() - t0, 3)
 
     closed = [v.rgb for v in render_opened(static, bodies, by_id, model.parts[0].id, 0.0, cams, rc.sh_degree, bg)]
@@ -249,6 +250,6 @@ def _opened_scores(m: dict, cap: Capture, cams, parts, opened: dict, synth, rc, 
     if reg:
         m["open_region_psnr"] = float(np.mean(reg))
     m["n_parts_scored_open"] = len(rows)
-    write_json(rdir / "scores.json", {"parts": rows})
+    write_json(run.out("render_scores"), {"parts": rows})
     if sheet:
-        Image.fromarray(np.concatenate(sheet, 0)).save(rdir / "contact_sheet.png")
+        Image.fromarray(np.concatenate(sheet, 0)).save(run.out("contact_sheet"))

@@ -29,6 +29,7 @@ import trimesh
 from jaxtyping import Float
 
 from drawer_lib.errors import InputError
+from drawer_lib.paths import stage_name
 from drawer_lib.geometry.rotations import matrix_to_quat, quat_to_matrix
 from drawer_lib.splat.sh import C0
 from drawer_lib.splat.ply import read_gaussian_ply
@@ -211,7 +212,7 @@ def relative_poses(xpos: Float[np.ndarray, "B 3"], xquat: Float[np.ndarray, "B 4
 
 
 def _twin_json(folder: Path) -> dict:
-    path = folder / "twin.json"
+    path = folder / stage_name("twin", "index")
     if not path.is_file():
         hint = " (a twin folder is what the twin stage writes: out/<scene>/twin)"
         raise InputError(f"{path}: missing{hint}" if folder.is_dir() else f"{folder}: no such folder{hint}")
@@ -229,7 +230,7 @@ def _splats(folder: Path, rel: str | None, what: str, min_scale: float) -> Splat
         return None
     path = folder / rel
     if not path.is_file():
-        raise InputError(f"{path}: missing (listed for {what} in {folder / 'twin.json'})")
+        raise InputError(f"{path}: missing (listed for {what} in {folder / stage_name('twin', 'index')})")
     return splats_of(read_gaussian_ply(path), min_scale=min_scale, what=str(path))
 
 
@@ -238,9 +239,9 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
     or a part of ``twin.json`` that ``scene.xml`` lacks, is an :class:`InputError` naming it."""
     folder = Path(folder)
     tj = _twin_json(folder)
-    xml = folder / "scene.xml"
+    xml = folder / stage_name("twin", "mjcf")
     if not xml.is_file():
-        raise InputError(f"{xml}: missing (twin.json's simulator model)")
+        raise InputError(f"{xml}: missing (the simulator model {stage_name('twin', 'index')} refers to)")
     try:
         m = mujoco.MjModel.from_xml_path(str(xml))
     except ValueError as e:
@@ -251,7 +252,7 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
     def mj_body(name: str) -> int:
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
         if b < 0:
-            raise InputError(f"{xml}: no body named {name!r} (listed in {folder / 'twin.json'})")
+            raise InputError(f"{xml}: no body named {name!r} (listed in {folder / stage_name('twin', 'index')})")
         return b
 
     st = tj.get("static") or {}
@@ -262,7 +263,7 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
     for p in tj.get("parts", []):
         pid, kind = p.get("id"), p.get("kind")
         if not pid or kind not in (*ARTICULATED, "rigid"):
-            raise InputError(f"{folder / 'twin.json'}: part {pid!r} has kind {kind!r} (expected revolute, prismatic or rigid)")
+            raise InputError(f"{folder / stage_name('twin', 'index')}: part {pid!r} has kind {kind!r} (expected revolute, prismatic or rigid)")
         b = mj_body(p.get("body") or pid)
         joint = None
         if kind in ARTICULATED:

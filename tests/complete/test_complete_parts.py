@@ -36,6 +36,7 @@ def test_body_gaussians_split_the_appearance_model_exactly(tmp_path):
     from drawer_lib.complete.config import CompleteConfig
     from drawer_lib.complete.interiors.templates import build_template
     from drawer_lib.complete.pipeline import _body_gaussians
+    from drawer_lib.paths import LAYOUT
     from drawer_lib.splat.ply import write_gaussian_ply
     from drawer_lib.splat.render import Gaussians
 
@@ -49,11 +50,11 @@ def test_body_gaussians_split_the_appearance_model_exactly(tmp_path):
     means = torch.from_numpy(anchor.triangles_center[face] + np.random.default_rng(0).normal(0, 1e-3, (n, 3)))
     g = Gaussians(means, torch.tensor([[1.0, 0, 0, 0]]).repeat(n, 1).double(), torch.full((n, 3), 0.01).double(),
                   torch.full((n,), 0.9).double(), torch.rand(n, 16, 3, generator=torch.Generator().manual_seed(0)).double())
-    d = tmp_path / "model"
-    d.mkdir()
-    write_gaussian_ply(d / "gaussians.ply", g)
-    np.savez(d / "binding.npz", mesh_face=face)
-    anchor.export(d / "anchor_mesh.ply")
+    d = tmp_path / "movable_gs_ste"  # an appearance variant's folder
+    (d / LAYOUT["appearance"]["model"]).mkdir(parents=True)
+    write_gaussian_ply(d / LAYOUT["appearance"]["gaussians"], g)
+    np.savez(d / LAYOUT["appearance"]["binding"], mesh_face=face)
+    anchor.export(d / LAYOUT["appearance"]["anchor_mesh"])
     cfg = CompleteConfig()
     it = build_template(door, "cabinet", cfg.interiors.template.front_thickness, 0.4, cfg.interiors.template)
     bodies, interior = _body_gaussians(cfg, d, [door], cfg.cut, [], {door.id: it})
