@@ -11,7 +11,8 @@ can share the cores instead. This module plans that and runs it with DVC itself:
    parameter dependencies (43 times for the default scene); here each distinct text is parsed
    once (:func:`yaml_parse_memo`), which takes ~0.4 s off a no-op ``make run``;
 2. every planned stage runs as its own ``dvc --wait-for-lock repro --single-item <stage>``
-   process once the planned stages it depends on have finished. DVC releases the repository's
+   process (on this machine, or through a ``launcher`` such as SLURM's ``srun``) once the
+   planned stages it depends on have finished. DVC releases the repository's
    lock while a stage's command runs and updates ``dvc.lock`` under it, so several of these
    processes share one workspace (``unlocked_repo`` in DVC's ``dvc/stage/run.py``). A stage whose inputs
    came out unchanged is skipped by DVC, and the run-cache restores instead of running as usual.
@@ -46,6 +47,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+SUMMARY = "summary.json"  # in the log folder: the last run's wall time and each stage's (the README's `make run` row)
 THREAD_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 # Typical stage walls (s) on kitchen_small at 1 thread, by stage family (the name before "@") or
@@ -325,9 +327,13 @@ def dvc_graph(root: Path) -> tuple[dict[str, frozenset[str]], set[str], dict[str
 
 def repro(root: Path, jobs: int = 2, threads: int | None = None, targets: list[str] | None = None,
           log_dir: Path | None = None, dry: bool = False, force: bool = False,
-          report: Callable[[str], None] = print) -> int:
+          report: Callable[[str], None] = print, launcher: list[str] | None = None) -> int:
     """Plan and run the project at ``root`` (see the module docstring); the exit code. ``force``:
-    every stage (of ``targets``) runs, none is restored from the run-cache (``dvc repro -f``)."""
+    every stage (of ``targets``) runs, none is restored from the run-cache (``dvc repro -f``).
+    ``launcher``: a command that runs each stage's ``dvc repro --single-item`` elsewhere and
+    returns when it is done, e.g. ``["srun", "--partition=cpu", "--cpus-per-task=1"]`` (a SLURM
+    cluster whose nodes share this workspace: DVC's lock lets the stages update ``dvc.lock``
+    from any node). Writes ``<log_dir>/summary.json`` (the run's and each stage's wall time)."""
     cores = os.cpu_count() or 1
     threads = threads or max(1, cores // jobs)
     log_dir = log_dir or root / "logs" / "repro"
@@ -353,7 +359,7 @@ def repro(root: Path, jobs: int = 2, threads: int | None = None, targets: list[s
     def launch(stage: str) -> subprocess.Popen:
         logs[stage] = log_dir / f"{stage.replace('/', '_')}.log"
         with logs[stage].open("w") as f:
-            return subprocess.Popen([*dvc, stage], cwd=root, env=env, stdout=f, stderr=subprocess.STDOUT,
+            return subprocess.Popen([*(launcher or []), *dvc, stage], cwd=root, env=env, stdout=f, stderr=subprocess.STDOUT,
                                     start_new_session=True)   # Ctrl-C reaches the scheduler, which stops each stage once
 
     def heartbeat(running: list[str]) -> None:
@@ -376,6 +382,10 @@ def repro(root: Path, jobs: int = 2, threads: int | None = None, targets: list[s
     bad = [o for o in ran if o.rc != 0]
     never = [o.stage for o in outcomes if o.rc is None]
     report(f"{'total':<48} {wall:8.1f}  {len(ran) - len(bad)} ok, {len(bad)} failed, {len(never)} not started")
+    (log_dir / SUMMARY).write_text(json.dumps({  # a log like the stages' (not an output: no atomic write)
+        "wall_s": round(wall, 1), "jobs": jobs, "threads": threads, "force": force, "n_stages": len(ran),
+        "n_stages_total": len(deps), "n_failed": len(bad), "stage_wall_s": round(sum(o.wall_s for o in ran), 1),
+        "stages": {o.stage: {"wall_s": round(o.wall_s, 1), "rc": o.rc} for o in ran}}, indent=1))
     for o in bad:
         tail = logs[o.stage].read_text(errors="replace").splitlines()[-30:]
         report(f"\n--- {o.stage} failed; the end of {logs[o.stage]}:\n" + "\n".join(tail))

@@ -6,10 +6,12 @@ Plans the out-of-date stages with one ``dvc status`` and runs each as its own
 ``--threads`` threads each (default cores // jobs; the thread count is part of a result, so it
 never depends on timing). Logs per stage in ``logs/repro/``. See drawer_lib/schedule.py.
 
-    python scripts/repro.py [--jobs 2] [--threads N] [--dry] [--force] [stage ...]
+    python scripts/repro.py [--jobs 2] [--threads N] [--dry] [--force] [--launcher CMD] [stage ...]
+    python scripts/repro.py --jobs 16 --launcher "srun --partition=cpu --cpus-per-task=1" fit_decisions bench_eval
 """
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -24,6 +26,8 @@ def main() -> int:
     ap.add_argument("--dry", action="store_true", help="print the plan, run nothing")
     ap.add_argument("--force", action="store_true", help="run every stage, restore none from the run-cache (dvc repro -f)")
     ap.add_argument("--log-dir", type=Path, default=ROOT / "logs" / "repro")
+    ap.add_argument("--launcher", default="", help="a command each stage runs under, e.g. 'srun --partition=cpu "
+                    "--cpus-per-task=1' (a SLURM cluster sharing this workspace; see docs/sweeps.md)")
     args = ap.parse_args()
     if args.jobs < 1 or (args.threads is not None and args.threads < 1):
         ap.error("--jobs and --threads must be at least 1")
@@ -31,7 +35,8 @@ def main() -> int:
 
     try:
         return repro(ROOT, jobs=args.jobs, threads=args.threads, targets=args.stages or None,
-                     log_dir=args.log_dir, dry=args.dry, force=args.force, report=lambda m: print(m, flush=True))
+                     log_dir=args.log_dir, dry=args.dry, force=args.force, report=lambda m: print(m, flush=True),
+                     launcher=shlex.split(args.launcher) or None)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

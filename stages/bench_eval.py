@@ -6,8 +6,6 @@ ground truth -> ``<paths.bench>/eval/<split>/`` (``table.md``, ``rows.json``, ``
     python -m stages.bench_eval -cn dvc_stage +bench_split=test
 """
 
-from pathlib import Path
-
 import hydra
 from omegaconf import DictConfig
 
@@ -15,9 +13,9 @@ from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.weights import resolve_weights
 from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.evaluate import run_eval
+from drawer_lib.config.stage import bench_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.errors import ConfigError
-from drawer_lib.paths import BenchPaths
 from drawer_lib.runner import main_guard, stage_run
 
 
@@ -29,10 +27,10 @@ def main(cfg: DictConfig) -> None:
     split = cfg.get("bench_split")
     if split not in bc.splits:
         raise ConfigError(f"bench_eval: pass +bench_split=<one of {bc.splits}>, got {split!r}")
-    bench = BenchPaths(Path(cfg.paths.bench))
-    weights = resolve_weights(ac.types, bench.weights)
-    with stage_run("bench_eval", bench.eval(split), seed=cfg.seed) as run:
-        run.metrics.update(run_eval(split, bc.kitchens, bench, ac, weights, run))
+    src, dst = bench_paths(cfg)
+    weights = resolve_weights(ac.types, src.weights)
+    with stage_run("bench_eval", dst.eval(split), seed=bc.seed) as run:
+        run.metrics.update(run_eval(split, bc.kitchens, src, ac, weights, run))
 
 
 if __name__ == "__main__":

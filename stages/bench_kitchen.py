@@ -19,10 +19,11 @@ from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.kitchens import KitchenConfigs, build_kitchen, kitchen_scene, kitchen_seed
 from drawer_lib.capture.config import CaptureConfig
+from drawer_lib.config.stage import bench_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.errors import ConfigError
 from drawer_lib.mesh.config import MeshConfig
-from drawer_lib.paths import BenchPaths, ScenePaths
+from drawer_lib.paths import ScenePaths
 from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.runner import main_guard, stage_run
 from drawer_lib.sdf.config import SdfConfig
@@ -44,8 +45,8 @@ def main(cfg: DictConfig) -> None:
     cfgs = KitchenConfigs(to_typed(CaptureConfig, cfg.capture, "capture"), to_typed(SdfConfig, cfg.sdf, "sdf"),
                           to_typed(MeshConfig, cfg.mesh, "mesh"), to_typed(DecomposeConfig, cfg.decompose, "decompose"),
                           to_typed(ArticulateConfig, cfg.articulate, "articulate"))
-    dst = BenchPaths(Path(cfg.paths.bench)).kitchen(split, k)
-    seed = kitchen_seed(cfg.seed, split, k)
+    dst = bench_paths(cfg)[1].kitchen(split, k)
+    seed = kitchen_seed(bc.seed, split, k)
     with stage_run("bench_kitchen", dst.root, seed=seed) as run:
         inside = ScenePaths(run.dir.parent, run.dir.name)
         run.metrics.update(build_kitchen(f"{split}_{dst.scene}", scene, cfgs, inside, seed, Path.cwd()))

@@ -6,16 +6,14 @@
     python -m stages.fit_decisions -cn dvc_stage
 """
 
-from pathlib import Path
-
 import hydra
 from omegaconf import DictConfig
 
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.fit import run_fit
+from drawer_lib.config.stage import bench_paths
 from drawer_lib.config.typed import to_typed
-from drawer_lib.paths import BenchPaths
 from drawer_lib.runner import main_guard, stage_run
 
 
@@ -24,9 +22,9 @@ from drawer_lib.runner import main_guard, stage_run
 def main(cfg: DictConfig) -> None:
     bc = to_typed(BenchConfig, cfg.bench, "bench")
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
-    bench = BenchPaths(Path(cfg.paths.bench))
-    with stage_run("fit", bench.fit, seed=cfg.seed) as run:
-        run.metrics.update(run_fit(bc, ac, bench, run))
+    src, dst = bench_paths(cfg)
+    with stage_run("fit", dst.fit, seed=bc.seed) as run:
+        run.metrics.update(run_fit(bc, ac, src, run))
 
 
 if __name__ == "__main__":

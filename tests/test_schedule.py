@@ -174,14 +174,23 @@ def test_repro_builds_a_dvc_project_two_stages_at_a_time(tmp_path):
     assert {o["threads"] for o in out.values()} == {"1"}
     assert out["b1"]["t0"] < out["b2"]["t1"] and out["b2"]["t0"] < out["b1"]["t1"]  # side by side
     assert max(out["b1"]["t1"], out["b2"]["t1"]) <= out["c"]["t0"]
+    summary = json.loads((d / "logs" / "repro" / "summary.json").read_text())
+    assert summary["n_stages"] == summary["n_stages_total"] == 4 and summary["n_failed"] == 0
+    assert set(summary["stages"]) == {"a", "b1", "b2", "c"} and summary["stage_wall_s"] >= 0.5 + 1.5 + 1.5 + 0.2
+    assert summary["wall_s"] < summary["stage_wall_s"]  # b1 and b2 side by side
     # DVC agrees that everything is built and recorded, and a second run does nothing
     assert "up to date" in run(sys.executable, "-m", "dvc", "status").stdout
     msgs.clear()
     assert repro(d, jobs=2, report=msgs.append) == 0 and "up to date" in msgs[-1]
-    # --force reruns everything (no run-cache restore)
+    # --force reruns everything (no run-cache restore); a launcher runs each stage's dvc command
+    # (srun on a cluster; here a wrapper that notes what it ran)
     t_a = (d / "a.json").stat().st_mtime_ns
     msgs.clear()
-    assert repro(d, jobs=2, force=True, report=msgs.append) == 0
+    wrapper = tmp_path / "launch.py"
+    wrapper.write_text("import subprocess, sys\nopen(sys.argv[0] + '.log', 'a').write(sys.argv[-1] + '\\n')\n"
+                       "sys.exit(subprocess.call(sys.argv[1:]))\n")
+    assert repro(d, jobs=2, force=True, report=msgs.append, launcher=[sys.executable, str(wrapper)]) == 0
+    assert sorted((tmp_path / "launch.py.log").read_text().split()) == ["a", "b1", "b2", "c"]
     assert any("4 stage(s) to run" in m for m in msgs) and (d / "a.json").stat().st_mtime_ns != t_a
     # the lock file is the one a plain `dvc repro` writes
     lock = (d / "dvc.lock").read_text()

@@ -31,7 +31,9 @@ class FitConfig:
 
 @dataclass(frozen=True)
 class BenchConfig:
-    """The benchmark: kitchen ``k`` of every split in ``splits`` for each ``k`` in ``kitchens``
+    """The benchmark: kitchen ``k`` of every split in ``splits`` for each ``k`` in ``kitchens``,
+    its sensor noise and sampling drawn from ``seed`` (its own: a seed study of a scene leaves
+    the benchmark and the decision weights as they are)
     (:func:`drawer_lib.synth.splits.split_synth`: the split's sizes, styles and counts over the
     scene ``base_scene``), captured with the sensors ``detections`` / ``depth``
     (conf/capture/<group>/<name>.yaml) and the geometry ``sdf`` (conf/sdf/<name>.yaml); the
@@ -40,6 +42,7 @@ class BenchConfig:
     keys of the synth camera block set over the split's (null: the split's own frames; smoke
     tests and the ``quick`` experiment shrink them)."""
 
+    seed: int = 0
     kitchens: list[int] = field(default_factory=lambda: list(range(20)))
     splits: list[str] = field(default_factory=lambda: list(SPLITS))
     base_scene: str = "kitchen_small"

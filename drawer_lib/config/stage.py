@@ -3,13 +3,14 @@
 Under DVC a stage runs as ``python -m stages.<name> -cn dvc_stage scene=<scene>``: the primary
 config is the committed ``params.yaml`` and the scene comes from ``conf/scene/<scene>.yaml``
 (a params file DVC tracks). In a Hydra multirun (``-m``) outputs go to the sweep's job
-directory, never over DVC's outputs; inputs are always read from ``paths.out``.
+directory, never over DVC's outputs; inputs are always read from ``paths.out`` (the
+benchmark's from ``paths.bench``).
 """
 
 from pathlib import Path
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.paths import ScenePaths
+from drawer_lib.paths import BenchPaths, ScenePaths
 
 
 def scene_name(cfg) -> str:
@@ -44,3 +45,11 @@ def scene_paths(cfg, scene: str) -> tuple[ScenePaths, ScenePaths]:
     variant = cfg.get("geometry_variant")
     variant = None if variant is None else str(variant)
     return ScenePaths(Path(cfg.paths.out), scene, variant), ScenePaths(out_root(cfg), scene, variant)
+
+
+def bench_paths(cfg) -> tuple[BenchPaths, BenchPaths]:
+    """(where this run reads the benchmark's outputs, where it writes its own): ``paths.bench``,
+    or in a Hydra multirun the job's output directory for what it writes."""
+    src = BenchPaths(Path(cfg.paths.bench))
+    dst = src if out_root(cfg) == Path(cfg.paths.out) else BenchPaths(out_root(cfg) / Path(cfg.paths.bench).name)
+    return src, dst

@@ -129,7 +129,7 @@ def test_labelled_fronts_read_decisions_and_skip_what_has_no_label(tmp_path):
     rows = fd.labelled_fronts("k7", p, gt)
     assert [(r[0], r[3]) for r in rows] == [("k7", "drawer"), ("k7", "fixed")]
     p.write_text("{not json")
-    with pytest.raises(InputError, match="decisions.json: not a decisions.json"):
+    with pytest.raises(InputError, match="decisions.json: not an articulation decisions file"):
         fd.labelled_fronts("k7", p, gt)
 
 

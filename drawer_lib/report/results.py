@@ -1,0 +1,214 @@
+"""The README's results table, written from the tracked metrics of one run (``make run``): the
+default scene's geometry, appearance, articulation, twin, simulation and stability figures, the
+benchmark's splits, the numerical-extremes tests and the run's wall time, with the commit and the
+machine they came from. A figure read from many kitchens shows its spread (mean ± sd, worst);
+figures of the one default scene are one seed on one machine and say so.
+
+    python scripts/readme_results.py            # print the table
+    python scripts/readme_results.py --write    # replace the README's results block
+"""
+
+import json
+import os
+import platform
+import subprocess
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths, bench_name
+from drawer_lib.report.markdown import md_table
+from drawer_lib.report.paper import PAPER
+
+BEGIN, END = "<!-- results: begin (scripts/readme_results.py writes this block) -->", "<!-- results: end -->"
+
+
+class MissingMetrics(Exception):
+    """A metrics file the table needs is missing: the run has not made it."""
+
+
+def _read(path: Path) -> dict:
+    if not path.is_file():
+        raise MissingMetrics(f"{path.name} of {path.parent.name}/ is missing (run `make run` first)")
+    return json.loads(path.read_text())
+
+
+@dataclass(frozen=True)
+class Run:
+    """Where one run's outputs are: the project ``root`` and its ``paths`` (params.yaml's)."""
+
+    root: Path
+    out: Path
+    reports: Path
+    bench: Path
+    scene: str
+
+    @property
+    def sp(self) -> ScenePaths:
+        return ScenePaths(self.out, self.scene)
+
+    def metrics(self, stage: str) -> dict:
+        return _read(self.sp.metrics(stage))
+
+
+def provenance(root: Path) -> str:
+    """The commit (and whether the tree differs from it), the machine and the date."""
+    def git(*a: str) -> str:
+        return subprocess.run(["git", *a], cwd=root, capture_output=True, text=True).stdout.strip()
+
+    commit = git("rev-parse", "--short", "HEAD") or "unknown"
+    # a run rewrites dvc.lock and this script the README: neither makes the code differ from the commit
+    dirty = [x for x in git("status", "--porcelain", "--untracked-files=no").splitlines()
+             if x[3:] not in ("dvc.lock", "README.md")]
+    try:
+        mem = next(int(x.split()[1]) for x in Path("/proc/meminfo").read_text().splitlines() if x.startswith("MemTotal"))
+        mem_s = f", {mem / 2**20:.0f} GiB"
+    except (OSError, StopIteration, ValueError):
+        mem_s = ""
+    cpu = platform.processor() or platform.machine()
+    return (f"commit `{commit}`{' (with uncommitted changes)' if dirty else ''}, {os.cpu_count()} cores "
+            f"({cpu}){mem_s}, no GPU, Python {platform.python_version()}")
+
+
+def _f(v, spec: str = ".3f") -> str:
+    return "–" if v is None else format(v, spec)
+
+
+def _spread(m: dict, key: str, spec: str = ".3f") -> str:
+    """``mean ± sd`` (worst) of a per-kitchen figure of a benchmark split's metrics."""
+    if f"fitted_{key}_mean" not in m:
+        return "–"
+    return (f"{_f(m[f'fitted_{key}_mean'], spec)} ± {_f(m[f'fitted_{key}_std'], spec)} "
+            f"(worst {_f(m[f'fitted_{key}_worst'], spec)})")
+
+
+def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[list[str]]:
+    """[result, figures, details] rows (see the module doc)."""
+    out = []
+
+    def row(name: str, fn: Callable[[], str], details: str) -> None:
+        try:
+            out.append([name, fn(), details])
+        except MissingMetrics as e:
+            out.append([name, f"not measured: {e}", details])
+
+    sp = run.sp
+    geo_names = {"tsdf": "TSDF baseline (sensor depth, 2 cm)", "neural_mono": "RGB + monocular priors (DRAWER's setting)"}
+
+    def geo(m: dict) -> str:
+        return (f"Chamfer-L1 {1000 * m['chamfer_l1']:.2f} mm, F@1cm {m['fscore_1cm']:.3f}, "
+                f"F@2cm {m['fscore_2cm']:.3f}")
+
+    row("geometry, neural SDF", lambda: geo(run.metrics("mesh")), "[docs/geometry.md](docs/geometry.md)")
+    for v in geometry_variants:
+        row(f"geometry, {geo_names.get(v, v)}", lambda v=v: geo(_read(ScenePaths(run.out, run.scene, v).metrics("mesh"))),
+            "[docs/geometry.md](docs/geometry.md)")
+
+    def app(v: str) -> dict:
+        return _read(sp.appearance_dir(v) / LAYOUT["metrics"])
+
+    if "movable_gs_ste" in variants:
+        row("appearance, the paper's method (`movable_gs_ste`)",
+            lambda: (lambda m: f"PSNR {m['psnr']:.2f} dB, SSIM {m['ssim']:.3f}, LPIPS {m['lpips']:.3f}")(app("movable_gs_ste")),
+            "[docs/appearance.md](docs/appearance.md)")
+    row("appearance ablation (" + " → ".join(variants) + ")",
+        lambda: " → ".join(f"{app(v)['psnr']:.2f}" for v in variants) + " dB",
+        "[docs/appearance.md](docs/appearance.md)")
+
+    def art() -> str:
+        m = run.metrics("evaluate")
+        s = (f"precision {_f(m.get('precision'))} ({m['n_correct']}/{m['n_pred'] - m['n_ignored']}), recall "
+             f"{_f(m.get('recall'))} ({m['n_correct']}/{m['n_gt']}), EA-score {_f(m.get('ea_score'), '.4f')}")
+        if "rigid_recall" in m:
+            s += f"; rigid objects {m['n_rigid_matched']}/{m['n_rigid_gt']} found, precision {_f(m.get('rigid_precision'), '.2f')}"
+        return s
+
+    row("articulation (simulated noisy detections, decision weights fitted on the benchmark's train split)", art,
+        "[docs/perception.md](docs/perception.md)")
+
+    def twin() -> str:
+        c, t = run.metrics("complete"), run.metrics("twin")
+        checks = ("every physical check passes (a failing check stops the stage)" if sp.file("twin", "checks").is_file()
+                  else "the physical checks did not run (twin.check: false)")
+        return (f"{c['wall_s']:.0f} s + {t['wall_s']:.0f} s; {checks}; {t['sim_sim_steps_per_s']:.0f} steps/s; "
+                f"closed PSNR {t['closed_psnr']:.2f} dB, "
+                f"opened at half range {t['open_psnr']:.2f} dB (part region {t['open_region_psnr']:.2f}); interior "
+                f"depth error {100 * c['interior_depth_error']:.1f} cm (DRAWER's rule "
+                f"{100 * c['interior_depth_error_drawer_rule']:.1f} cm)")
+
+    row("the twin (`complete` + `twin`)", twin, "[docs/twin.md](docs/twin.md)")
+
+    def sim() -> str:
+        e, s = run.metrics("evaluate"), run.metrics("simulate")
+        return (f"motion EMD {_f(e.get('emd'), '.2e')} over {e.get('n_emd', 0)} parts (the paper "
+                f"{PAPER['motion_emd']:.2e}); cups ride along in {s['cup_rides_along_passed']}/{s['cup_rides_along_n']} "
+                f"closing drawers, {s['pull_handle_passed']}/{s['pull_handle_n']} parts pulled open at ≤ "
+                f"{s['pull_handle_peak_force_max_n']:.1f} N, a dropped block rests on the counter: "
+                f"{s['drop_on_counter_passed']}/{s['drop_on_counter_n']}")
+
+    row("the simulated twin (`simulate`, `evaluate`)", sim, "[docs/twin.md](docs/twin.md)")
+
+    def stab() -> str:
+        m, c = run.metrics("stability"), _read(sp.file("stability", "choice"))
+        return (f"{m['n_cells']} cells ({m['n_cells_diverged']} diverged): {c['integrator']} at {1000 * c['timestep']:g} ms "
+                f"keeps every part within {1000 * c['nominal_error']:.2f} mm of the reference (real-time factor "
+                f"{c['realtime_factor']:.1f}); {m['n_extremes_outside']} extreme cases need the remedies it lists")
+
+    row("the stability study (`stability`)", stab, "[docs/twin.md](docs/twin.md)")
+
+    def bench(split: str) -> Callable[[], str]:
+        def fn() -> str:
+            m = _read(BenchPaths(run.bench).eval(split) / LAYOUT["metrics"])
+            return (f"{m['fitted_n_kitchens']} kitchens: precision {_f(m.get('precision'))}, recall {_f(m.get('recall'))}, "
+                    f"EA-score {_f(m.get('ea_score'))} pooled; per kitchen: precision {_spread(m, 'precision')}, recall "
+                    f"{_spread(m, 'recall')}, EA {_spread(m, 'ea_score')}; the hand-set prior weights: precision "
+                    f"{_f(m.get('prior_precision'))}, recall {_f(m.get('prior_recall'))}, EA "
+                    f"{_f(m.get('prior_ea_score'))}")
+        return fn
+
+    row("articulation benchmark, test split (never tuned on; simulated generic detections, TSDF meshes)", bench("test"),
+        "[docs/perception.md](docs/perception.md)")
+    row("articulation benchmark, train split (the decision weights are fitted on it)", bench("train"),
+        "[docs/perception.md](docs/perception.md)")
+
+    def fit() -> str:
+        m = _read(BenchPaths(run.bench).fit / LAYOUT["metrics"])
+        return (f"{m['n_fronts']} labelled fronts of {m['n_kitchens']} kitchens, leave-kitchens-out accuracy "
+                f"{m['cv_accuracy']:.3f} (λ = {m['lambda']:g}); hand-built hard cases passed: {m['cases_passed']} of "
+                f"{m['cases_total']} (`{bench_name('cases')}`)")
+
+    row("the decision weights (`fit_decisions`)", fit, "[docs/perception.md](docs/perception.md)")
+
+    def extremes() -> str:
+        m = _read(run.reports / LAYOUT["report"]["extremes"])
+        return f"{m['extremes_passed']} / {m['extremes_n']} numerical-extremes tests pass"
+
+    row("the report (`report`, `extremes`)", extremes, "`reports/index.html`")
+
+    def wall() -> str:
+        s = _read(run.root / "logs" / "repro" / "summary.json")
+        what = "from scratch" if s["force"] or s["n_stages"] >= s["n_stages_total"] else f"{s['n_stages']} stages"
+        return (f"{s['wall_s'] / 60:.1f} min ({what}, {s['n_stages']} stages, {s['jobs']} at a time, "
+                f"{s['threads']} thread each); stage walls sum to {s['stage_wall_s'] / 60:.1f} min")
+
+    row("`make run`", wall, "[docs/speed.md](docs/speed.md)")
+    return out
+
+
+def results_block(run: Run, variants: list[str], geometry_variants: list[str]) -> str:
+    """The README block: provenance, what was simulated, the table."""
+    head = (f"Measured by one `make run` on {provenance(run.root)}. The default scene is procedural: its depth, "
+            "monocular priors and 2D detections are **simulated from the renders** (noisy, with misses, merges and "
+            "false masks), as are the benchmark kitchens' (generic labels). Figures of the default scene are one "
+            "seed on one machine; a benchmark figure over many kitchens shows its spread across them (mean ± sd, "
+            "worst kitchen).\n\n")
+    return head + md_table(["result", "figures", "details"], rows(run, variants, geometry_variants))
+
+
+def replace_block(readme: str, block: str) -> str:
+    """``readme`` with the text between the results markers replaced by ``block``."""
+    if BEGIN not in readme or END not in readme:
+        raise ValueError(f"README: no results block (the lines {BEGIN!r} and {END!r})")
+    a, rest = readme.split(BEGIN, 1)
+    _, b = rest.split(END, 1)
+    return f"{a}{BEGIN}\n{block.rstrip()}\n{END}{b}"

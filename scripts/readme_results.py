@@ -1,0 +1,35 @@
+#!/usr/bin/env python
+"""The README's results table from the tracked metrics of the last run (drawer_lib/report/results.py):
+print it, or with ``--write`` replace the README's results block.
+
+    make run && python scripts/readme_results.py --write
+"""
+
+import argparse
+from pathlib import Path
+
+import yaml
+
+from drawer_lib.report.results import Run, replace_block, results_block
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--write", action="store_true", help="replace the block in README.md")
+    ap.add_argument("--scene", default="kitchen_small")
+    a = ap.parse_args()
+    p = yaml.safe_load((ROOT / "params.yaml").read_text())
+    run = Run(ROOT, ROOT / p["paths"]["out"], ROOT / p["paths"]["reports"], ROOT / p["paths"]["bench"], a.scene)
+    block = results_block(run, p["appearance_variants"], p["geometry_variants"])
+    if a.write:
+        readme = ROOT / "README.md"
+        readme.write_text(replace_block(readme.read_text(), block))
+        print(f"wrote the results block of {readme}")
+    else:
+        print(block)
+
+
+if __name__ == "__main__":
+    main()
