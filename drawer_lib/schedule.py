@@ -88,9 +88,11 @@ def make_plan(deps: Mapping[str, Iterable[str]], changed: Iterable[str],
 
     ``deps[s]``: the stages whose outputs ``s`` uses (every stage is a key); ``changed``: the
     stages DVC reports as changed; ``cost[s]``: an estimate of ``s``'s run time (default 1);
-    ``targets``: when given, only these stages and what they depend on are considered. The plan
-    is the changed stages and everything downstream of them. Raises ``ValueError`` on an
-    unknown stage name or a cycle.
+    ``targets``: when given, only these stages and what they depend on are considered (a
+    ``foreach`` / ``matrix`` name stands for all its stages, ``bench_eval`` for
+    ``bench_eval@train`` and ``bench_eval@test``, as ``dvc repro`` reads it). The plan is the
+    changed stages and everything downstream of them. Raises ``ValueError`` on an unknown stage
+    name or a cycle.
     """
     deps = {s: frozenset(d) for s, d in deps.items()}
     for s, d in deps.items():
@@ -108,7 +110,7 @@ def make_plan(deps: Mapping[str, Iterable[str]], changed: Iterable[str],
 
     scope = set(deps)
     if targets is not None:
-        targets = set(targets)
+        targets = {s for t in targets for s in ([t] if t in deps else [k for k in deps if k.startswith(t + "@")] or [t])}
         if targets - deps.keys():
             raise ValueError(f"unknown target stage(s) {sorted(targets - deps.keys())}; "
                              f"stages are: {', '.join(order)}")

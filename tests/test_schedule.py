@@ -44,6 +44,12 @@ def test_targets_limit_the_plan_to_what_they_need():
     assert plan.stages == ["a", "b2"]
     plan = make_plan(DIAMOND, changed={"a", "d"}, targets={"d"})
     assert plan.stages == ["d"]
+    # a foreach / matrix name stands for all its stages, as `dvc repro` reads it
+    grouped = {"k@0": [], "k@1": [], "fit": ["k@0", "k@1"], "ev@train": ["fit", "k@0"], "ev@test": ["fit"], "x": []}
+    plan = make_plan(grouped, changed=set(grouped), targets={"ev"})
+    assert set(plan.stages) == {"k@0", "k@1", "fit", "ev@train", "ev@test"}
+    with pytest.raises(ValueError, match="unknown target stage"):
+        make_plan(grouped, changed=set(grouped), targets={"e"})
 
 
 def test_the_longest_remaining_path_goes_first():
