@@ -105,11 +105,13 @@ def scores(W: dict[str, torch.Tensor], Xc: torch.Tensor, Xd: torch.Tensor) -> to
 
 def fit(Xc: torch.Tensor, Xd: torch.Tensor, y: torch.Tensor, lam: float, prior: dict[str, dict[str, float]],
         min_examples: int = 0) -> dict[str, torch.Tensor]:
-    """Weights minimising the mean cross-entropy + ``lam`` x the sum of squared fitted weights
-    (biases unpenalised). Kept at the ``prior``'s values: the label weights, every weight of a
-    hypothesis without examples in ``y``, and all but the bias of one with fewer than
-    ``min_examples``. Deterministic (float64 L-BFGS from zeros)."""
-    free_mask = torch.tensor([k not in LABEL_FEATURES and k != "bias" for k in COMMON], dtype=torch.float64)
+    """Weights minimising the mean cross-entropy + ``lam`` x the sum of squared fitted weights,
+    biases included (unpenalised, they would all rise together without bound whenever a
+    hypothesis has no example: that lowers its probability at no cost). Kept at the
+    ``prior``'s values: the label weights, every weight of a hypothesis without examples in
+    ``y``, and all but the bias of one with fewer than ``min_examples``. Deterministic (float64
+    L-BFGS from zeros)."""
+    free_mask = torch.tensor([k not in LABEL_FEATURES for k in COMMON], dtype=torch.float64)
     family = [weight_set(h) for h in HYPOTHESES]
     n_of = {k: int(sum(int((y == i).sum()) for i, f in enumerate(family) if f == k)) for k in WEIGHT_SETS}
     seen = {k for k, n in n_of.items() if n > 0}
