@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths
-from drawer_lib.report.results import BEGIN, END, Run, replace_block, results_block, rows
+from drawer_lib.report.results import (BEGIN, END, Run, replace_block, results_block, rows, seed_experiments,
+                                       seed_spread)
 
 
 def _put(path: Path, d: dict) -> None:
@@ -66,3 +67,27 @@ def test_the_readme_block_is_replaced_in_place():
 def test_the_readme_has_the_block():
     text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
     assert text.count(BEGIN) == 1 and text.count(END) == 1 and text.index(BEGIN) < text.index(END)
+
+
+def _exp(run: Run, seed: int, params: dict, chamfer: float, error=None) -> dict:
+    rel = ScenePaths(run.out, "k").metrics("mesh").relative_to(run.root).as_posix()
+    return {"rev": f"r{seed}", "name": f"seed-{seed}", "error": error,
+            "data": {"params": {"params.yaml": {"data": {**params, "seed": seed}}},
+                     "metrics": {rel: {"data": {"chamfer_l1": chamfer, "fscore_1cm": 0.9, "fscore_2cm": 0.98}}}}}
+
+
+def test_the_seed_experiments_give_each_figure_its_range(run):
+    params = {"seed": 0, "sdf": {"neural": {"steps": 1300}}}
+    revs = [{"rev": "head", "experiments": [
+        {"revs": [_exp(run, 2, params, 0.00251)]}, {"revs": [_exp(run, 1, params, 0.00219)]},
+        {"revs": [_exp(run, 3, {**params, "sdf": {"neural": {"steps": 100}}}, 0.009)]},  # not a seed variant
+        {"revs": [_exp(run, 4, params, 0.001, error={"msg": "failed"})]}]},  # failed
+        {"rev": "other commit", "experiments": [{"revs": [_exp(run, 5, params, 0.001)]}]}]
+    seeds = seed_experiments(revs, "head", params, run)
+    assert [s for s, _ in seeds] == [1, 2]
+    table = seed_spread(rows(run, ["movable_gs_ste"], []), run, seeds, 0)
+    by = {r[0]: r[1] for r in table}
+    assert by["geometry, neural SDF"].endswith("(seeds 0, 1, 2: Chamfer-L1 2.19–2.51 mm)")
+    # a figure the experiments lack keeps its single value
+    assert by["appearance, the paper's method (`movable_gs_ste`)"] == "PSNR 43.02 dB, SSIM 0.985, LPIPS 0.015"
+    assert "seeds 0 to 2" in results_block(run, ["movable_gs_ste"], [], seeds, 0)

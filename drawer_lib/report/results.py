@@ -6,12 +6,17 @@ figures of the one default scene are one seed on one machine and say so.
 
     python scripts/readme_results.py            # print the table
     python scripts/readme_results.py --write    # replace the README's results block
+
+The seed spread: queue the default scene at other seeds first, e.g. ``dvc exp run --queue -n
+seed-1 -S seed=1`` and ``dvc queue start``; their finished experiments of the current commit
+are found through ``dvc exp show``.
 """
 
 import json
 import os
 import platform
 import subprocess
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,26 +40,117 @@ def _read(path: Path) -> dict:
 
 @dataclass(frozen=True)
 class Run:
-    """Where one run's outputs are: the project ``root`` and its ``paths`` (params.yaml's)."""
+    """Where one run's outputs are: the project ``root`` and its ``paths`` (params.yaml's);
+    ``tracked``: the metrics files of a DVC experiment ({path relative to ``root``: data}) to
+    read instead of the workspace's files (:func:`seed_runs`)."""
 
     root: Path
     out: Path
     reports: Path
     bench: Path
     scene: str
+    tracked: dict | None = None
 
     @property
     def sp(self) -> ScenePaths:
         return ScenePaths(self.out, self.scene)
 
+    def read(self, path: Path) -> dict:
+        if self.tracked is None:
+            return _read(path)
+        rel = Path(path).relative_to(self.root).as_posix()
+        if rel not in self.tracked:
+            raise MissingMetrics(f"{rel} is not among the experiment's metrics")
+        return self.tracked[rel]
+
     def metrics(self, stage: str) -> dict:
-        return _read(self.sp.metrics(stage))
+        return self.read(self.sp.metrics(stage))
+
+
+def seed_runs(root: Path, base: Run) -> list[tuple[int, Run]]:
+    """The finished DVC experiments of the current commit that differ from the workspace's
+    parameters in ``seed`` only (e.g. ``dvc exp run --queue -S seed=1``), as (seed, run reading
+    their tracked metrics), by seed (``dvc exp show --json``; none when DVC cannot tell)."""
+    r = subprocess.run([sys.executable, "-m", "dvc", "exp", "show", "--json"], cwd=root, capture_output=True, text=True, check=False)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=False).stdout.strip()
+    try:
+        return seed_experiments(json.loads(r.stdout), head, yaml_params(root), base)
+    except (ValueError, OSError):
+        return []
+
+
+def seed_experiments(revs: list[dict], head: str, params: dict, base: Run) -> list[tuple[int, Run]]:
+    """:func:`seed_runs` from the parsed ``dvc exp show --json`` (``revs``), the commit
+    ``head`` and the workspace's ``params``."""
+    rest = {k: v for k, v in params.items() if k != "seed"}
+    out = []
+    for rev in revs:
+        if rev.get("rev") != head:
+            continue
+        for exp in rev.get("experiments") or []:
+            for x in exp.get("revs") or []:
+                data = x.get("data") or {}
+                p = ((data.get("params") or {}).get("params.yaml") or {}).get("data")
+                if not p or x.get("error") or p.get("seed") == params.get("seed"):
+                    continue
+                if {k: v for k, v in p.items() if k != "seed"} != rest:
+                    continue
+                tracked = {path: m.get("data", {}) for path, m in (data.get("metrics") or {}).items()}
+                out.append((int(p["seed"]), Run(base.root, base.out, base.reports, base.bench, base.scene, tracked)))
+    return sorted(out, key=lambda t: t[0])
+
+
+def yaml_params(root: Path) -> dict:
+    import yaml
+
+    return yaml.safe_load((Path(root) / "params.yaml").read_text())
+
+
+# the figures whose spread over seeds the table shows: (row, what, figure of a run, number format, unit)
+SEED_FIGURES = (
+    ("geometry, neural SDF", "Chamfer-L1", lambda r: 1000 * r.metrics("mesh")["chamfer_l1"], "{:.2f}", " mm"),
+    ("appearance, the paper's method (`movable_gs_ste`)", "PSNR",
+     lambda r: r.read(r.sp.appearance_dir("movable_gs_ste") / LAYOUT["metrics"])["psnr"], "{:.2f}", " dB"),
+    ("articulation (", "precision / recall / EA-score",
+     lambda r: tuple(r.metrics("evaluate").get(k, float("nan")) for k in ("precision", "recall", "ea_score")),
+     "{:.3f}", ""),
+    ("the twin (", "opened PSNR", lambda r: r.metrics("twin")["open_psnr"], "{:.2f}", " dB"),
+    ("the simulated twin (", "motion EMD", lambda r: r.metrics("evaluate").get("emd", float("nan")), "{:.2e}", ""),
+)
+
+
+def _span(values: list, fmt: str) -> str:
+    """``a–b`` of the values (each a number or a tuple of numbers formatted alike)."""
+    if isinstance(values[0], tuple):
+        return " / ".join(_span([v[i] for v in values], fmt) for i in range(len(values[0])))
+    lo, hi = min(values), max(values)
+    return fmt.format(lo) if lo == hi else f"{fmt.format(lo)}–{fmt.format(hi)}"
+
+
+def seed_spread(table: list[list[str]], run: Run, seeds: list[tuple[int, Run]], seed0: int) -> list[list[str]]:
+    """The rows with, for the figures of :data:`SEED_FIGURES`, their range over this run and
+    the seed experiments appended."""
+    if not seeds:
+        return table
+    runs = [(seed0, run), *seeds]
+    names = ", ".join(str(s) for s, _ in sorted(runs, key=lambda t: t[0]))
+    out = []
+    for name, figures, details in table:
+        for prefix, what, fn, fmt, unit in SEED_FIGURES:
+            if name.startswith(prefix) and not figures.startswith("not measured"):
+                try:
+                    vals = [fn(r) for _, r in runs]
+                except (MissingMetrics, KeyError):
+                    continue
+                figures += f" (seeds {names}: {what} {_span(vals, fmt)}{unit})"
+        out.append([name, figures, details])
+    return out
 
 
 def provenance(root: Path) -> str:
     """The commit (and whether the tree differs from it), the machine and the date."""
     def git(*a: str) -> str:
-        return subprocess.run(["git", *a], cwd=root, capture_output=True, text=True).stdout.strip()
+        return subprocess.run(["git", *a], cwd=root, capture_output=True, text=True, check=False).stdout.strip()
 
     commit = git("rev-parse", "--short", "HEAD") or "unknown"
     # a run rewrites dvc.lock and this script the README: neither makes the code differ from the commit
@@ -101,11 +197,11 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
 
     row("geometry, neural SDF", lambda: geo(run.metrics("mesh")), "[docs/geometry.md](docs/geometry.md)")
     for v in geometry_variants:
-        row(f"geometry, {geo_names.get(v, v)}", lambda v=v: geo(_read(ScenePaths(run.out, run.scene, v).metrics("mesh"))),
+        row(f"geometry, {geo_names.get(v, v)}", lambda v=v: geo(run.read(ScenePaths(run.out, run.scene, v).metrics("mesh"))),
             "[docs/geometry.md](docs/geometry.md)")
 
     def app(v: str) -> dict:
-        return _read(sp.appearance_dir(v) / LAYOUT["metrics"])
+        return run.read(sp.appearance_dir(v) / LAYOUT["metrics"])
 
     if "movable_gs_ste" in variants:
         row("appearance, the paper's method (`movable_gs_ste`)",
@@ -195,14 +291,19 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
     return out
 
 
-def results_block(run: Run, variants: list[str], geometry_variants: list[str]) -> str:
-    """The README block: provenance, what was simulated, the table."""
+def results_block(run: Run, variants: list[str], geometry_variants: list[str],
+                  seeds: list[tuple[int, Run]] | None = None, seed0: int = 0) -> str:
+    """The README block: provenance, what was simulated, the table (with the spread over the
+    ``seeds`` experiments of the default scene's main figures, when there are any)."""
+    spread = (f"the default scene's main figures show their range over seeds {seed0} to {max(s for s, _ in seeds)} "
+              f"(`dvc exp run -S seed=<s>`, the rest of the table is seed {seed0})" if seeds
+              else "figures of the default scene are one seed")
     head = (f"Measured by one `make run` on {provenance(run.root)}. The default scene is procedural: its depth, "
             "monocular priors and 2D detections are **simulated from the renders** (noisy, with misses, merges and "
-            "false masks), as are the benchmark kitchens' (generic labels). Figures of the default scene are one "
-            "seed on one machine; a benchmark figure over many kitchens shows its spread across them (mean ± sd, "
-            "worst kitchen).\n\n")
-    return head + md_table(["result", "figures", "details"], rows(run, variants, geometry_variants))
+            f"false masks), as are the benchmark kitchens' (generic labels). One machine; {spread}; a benchmark "
+            "figure over many kitchens shows its spread across them (mean ± sd, worst kitchen).\n\n")
+    table = seed_spread(rows(run, variants, geometry_variants), run, seeds or [], seed0)
+    return head + md_table(["result", "figures", "details"], table)
 
 
 def replace_block(readme: str, block: str) -> str:
