@@ -69,7 +69,6 @@ def main() -> None:
     code = subprocess.run([sys.executable, "-m", "cProfile", "-o", str(path), "-m", module, *stage_args,
                            *args.overrides], cwd=ROOT).returncode
     wall = time.perf_counter() - t0
-    prof = pstats.Stats(str(path))
     for key in ("tottime", "cumulative"):
         buf = io.StringIO()
         pstats.Stats(str(path), stream=buf).strip_dirs().sort_stats(key).print_stats(args.top)

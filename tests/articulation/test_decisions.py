@@ -97,7 +97,7 @@ def test_door_hypotheses_mirror_exactly():
 
 def test_evidence_is_built_by_keyword():
     with pytest.raises(TypeError):
-        Evidence(None, (0.5, 0.5), 0.5, 0, False, False, False, 0.0, None, {}, 1)  # noqa: the old positional form
+        Evidence(None, (0.5, 0.5), 0.5, 0, False, False, False, 0.0, None, {}, 1)  # the old positional form
 
 
 def test_rail_extent_finds_a_track_and_not_a_counter():

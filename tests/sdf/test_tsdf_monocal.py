@@ -97,7 +97,6 @@ def test_photometric_calibration_recovers_metric_depth_from_exact_relative_depth
 
 def test_calibration_without_any_neighbour_is_an_error(exact):
     cap, _ = exact
-    fr = cap.train[:2]
     imgs = torch.rand(2, cap.intrinsics.height, cap.intrinsics.width, 3)
     mono = torch.rand(2, cap.intrinsics.height, cap.intrinsics.width)
     c2w = torch.eye(4).repeat(2, 1, 1)

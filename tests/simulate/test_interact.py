@@ -4,7 +4,6 @@ plausible force, a block dropped on the counter rests on it; and their failures 
 
 import dataclasses
 
-import numpy as np
 import pytest
 import sim_fixtures as F
 

@@ -9,9 +9,6 @@ def composite_reference(means2d, conics, opacities, colors, depths, radii, width
     """For every pixel: all unculled Gaussians sorted by depth, the same skip / clamp /
     termination rules, written as a plain loop (autograd gives the gradients)."""
     order = [int(i) for i in torch.argsort(depths.detach(), stable=True) if radii[i] > 0]
-    rgb = torch.zeros(height, width, 3, dtype=means2d.dtype)
-    dep = torch.zeros(height, width, dtype=means2d.dtype)
-    alpha = torch.zeros(height, width, dtype=means2d.dtype)
     rows = []
     for py in range(height):
         row = []
