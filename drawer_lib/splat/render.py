@@ -113,8 +113,8 @@ def _render_gsplat(g: Gaussians, cam: Camera, sh_degree: int, background: Tensor
     Ks = torch.tensor([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=torch.float32, device=dev)[None]
     viewmats = torch.as_tensor(cam.w2c, dtype=torch.float32, device=dev)[None]
     bg = None
-    if background is not None:  # gsplat composites the background into every channel, depth included
-        bg = torch.cat([background.to(dev, torch.float32), torch.zeros(1, device=dev)])[None]
+    if background is not None:  # [1, 3]: in RGB+ED mode gsplat appends the depth channel's zero itself
+        bg = background.to(dev, torch.float32)[None]
     colors, alphas, meta = gsplat.rasterization(
         g.means.to(dev), g.quats.to(dev), g.scales.to(dev), g.opacities.to(dev), g.sh.to(dev), viewmats, Ks,
         cam.width, cam.height, near_plane=near, far_plane=far, eps2d=eps2d, sh_degree=sh_degree, tile_size=tile,

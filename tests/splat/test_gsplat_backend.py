@@ -35,7 +35,9 @@ def fake_gsplat() -> types.ModuleType:
     def rasterization(means, quats, scales, opacities, colors, viewmats, Ks, width, height, *, near_plane, far_plane,
                       eps2d, sh_degree, tile_size, backgrounds, render_mode, rasterize_mode, absgrad, packed):
         assert render_mode == "RGB+ED" and rasterize_mode == "classic" and absgrad and not packed
-        assert viewmats.shape == (1, 4, 4) and Ks.shape == (1, 3, 3) and backgrounds.shape == (1, 4)
+        # gsplat 1.5.3 appends the depth channel to the colours and a zero to the backgrounds
+        # itself, and asserts backgrounds [C, 4] afterwards: the caller passes [C, 3]
+        assert viewmats.shape == (1, 4, 4) and Ks.shape == (1, 3, 3) and backgrounds.shape == (1, 3)
         K = Ks[0].double()
         cam = Camera(Intrinsics(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), width, height),
                      viewmats[0].double().numpy())
@@ -85,9 +87,11 @@ def test_gsplat_matches_the_cpu_renderer():
     pytest.importorskip("gsplat")
     g = scene(200)
     g = Gaussians(g.means, g.quats, g.scales, g.opacities, torch.rand(200, 16, 3) - 0.5)
-    a, b = render(g, CAM, 3), render(g, CAM, 3, backend="gsplat")
-    assert b.rgb.device == g.means.device
-    torch.testing.assert_close(b.rgb, a.rgb, rtol=1e-3, atol=1e-3)
+    for bg in (None, torch.tensor([0.1, 0.2, 0.3])):
+        a, b = render(g, CAM, 3, bg), render(g, CAM, 3, bg, backend="gsplat")
+        assert b.rgb.device == g.means.device
+        torch.testing.assert_close(b.rgb, a.rgb, rtol=1e-3, atol=1e-3)
+        torch.testing.assert_close(b.depth, a.depth, rtol=1e-3, atol=1e-3)
 
 
 @pytest.mark.gpu
