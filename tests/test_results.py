@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths
-from drawer_lib.report.results import (BEGIN, END, Run, replace_block, results_block, rows, seed_experiments,
-                                       seed_spread)
+from drawer_lib.report.results import (BEGIN, END, Run, replace_block, results_block, rows, run_time,
+                                       seed_experiments, seed_spread)
 
 
 def _put(path: Path, d: dict) -> None:
@@ -91,3 +91,11 @@ def test_the_seed_experiments_give_each_figure_its_range(run):
     # a figure the experiments lack keeps its single value
     assert by["appearance, the paper's method (`movable_gs_ste`)"] == "PSNR 43.02 dB, SSIM 0.985, LPIPS 0.015"
     assert "seeds 0 to 2" in results_block(run, ["movable_gs_ste"], [], seeds, 0)
+
+
+def test_the_run_time_says_whether_the_run_was_from_scratch():
+    s = {"wall_s": 1719.6, "jobs": 2, "threads": 1, "force": True, "n_stages": 64, "n_stages_total": 64,
+         "stage_wall_s": 3402.6}
+    assert run_time(s) == "28.7 min (from scratch, 64 stages, 2 at a time, 1 thread each); stage walls sum to 56.7 min"
+    part = run_time({**s, "force": False, "n_stages": 14, "wall_s": 447.8, "threads": 2, "stage_wall_s": 846.0})
+    assert part.startswith("7.5 min (14 of 64 stages rerun, the rest from DVC's cache, 2 at a time, 2 threads each)")
