@@ -1,5 +1,6 @@
 """Render a procedural kitchen into a capture folder (docs/formats.md#capture) with ground truth."""
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,8 +22,12 @@ from drawer_lib.synth.model import KitchenRenderer, build_model
 from drawer_lib.synth.sensors import (
     DetectableEntity,
     DetectionStats,
+    PartFailures,
+    decide_part_failures,
+    false_front_mask,
     mono_depth,
     mono_normals,
+    place_false_fronts,
     sensor_depth,
     simulate_detections,
 )
@@ -45,6 +50,17 @@ def _detectables(layout) -> list[DetectableEntity]:
             out.append(DetectableEntity("object", e.label))
         else:
             out.append(DetectableEntity("front", e.label))
+    return out
+
+
+def _front_boxes(layout, detectables: list[DetectableEntity]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Each front's axis-aligned box (m) in the kitchen's own frame (its walls along the axes)."""
+    R, t = layout.pose[:3, :3], layout.pose[:3, 3]
+    out = {}
+    for k, (e, d) in enumerate(zip(layout.entities, detectables)):
+        if d.kind == "front":
+            v = (e.mesh().verts - t) @ R
+            out[k] = (v.min(0), v.max(0))
     return out
 
 
@@ -71,6 +87,10 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
 
     dep_cfg, mono_cfg, det_cfg = sensors.depth, sensors.mono, sensors.detections
     dstats = DetectionStats()
+    failures, part_rng = PartFailures(), None
+    if det_cfg.enabled and det_cfg.persistent:  # decided once, per part (draws only when on)
+        part_rng = np.random.default_rng(int(rng.integers(2**63)))
+        failures = decide_part_failures(detectables, _front_boxes(layout, detectables), det_cfg, part_rng)
     depth_err, depth_valid, n_dets = [], [], []
     frames = []
     renderer = KitchenRenderer(km, intr)
@@ -101,11 +121,17 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
                 fr["mono_normal_file_path"] = f"{D['mono_normal']}/{stem}.npy"
                 np.save(out / fr["mono_normal_file_path"], mono_normals(n_cam, mono_cfg, rng))
             if det_cfg.enabled:
-                lab, dets, st = simulate_detections(ent, handle, detectables, det_cfg, rng)
+                if k == 0 and det_cfg.n_false_fronts > 0:
+                    failures = dataclasses.replace(failures, false_fronts=place_false_fronts(
+                        det_cfg.n_false_fronts, z, n_cam, ent == 0, intr, poses_cv[k], det_cfg.labels == "typed",
+                        part_rng))
+                world_false = [(false_front_mask(ff, z, ent == 0, intr, poses_cv[k]), ff.label)
+                               for ff in failures.false_fronts]
+                lab, dets, st = simulate_detections(ent, handle, detectables, det_cfg, rng, failures, world_false)
                 fr["detections_path"] = f"{D['detections']}/{stem}.png"
                 write_u16(out / fr["detections_path"], lab)
                 write_json((out / fr["detections_path"]).with_suffix(".json"), dets, indent=None)
-                for f in ("candidates", "detected", "missed", "merged", "false"):
+                for f in ("candidates", "detected", "missed", "merged", "false", "world_false"):
                     setattr(dstats, f, getattr(dstats, f) + getattr(st, f))
                 n_dets.append(len(dets))
             inst = np.where(ent >= 0, inst_of_entity[np.maximum(ent, 0)], 0).astype(np.uint16)
@@ -159,4 +185,7 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
     if n_dets:
         metrics.update(detections_per_frame=round(float(np.mean(n_dets)), 2), detections_missed=dstats.missed,
                        detections_merged=dstats.merged, detections_false=dstats.false)
+        if det_cfg.persistent:
+            metrics.update({f"detections_{k}": v for k, v in failures.summary().items()},
+                           detections_world_false=dstats.world_false)
     return manifest, metrics

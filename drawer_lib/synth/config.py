@@ -211,6 +211,14 @@ class DetectionsConfig:
     ``boundary_noise_px``; ``false_rate`` false masks per frame (Poisson) appear on static
     surfaces; ids are shuffled per frame. ``labels``: ``typed`` (drawer/door/handle/cup/...,
     with drawer <-> door swaps at ``label_confusion``) or ``generic`` (front/handle/object).
+
+    Failures of a real detector that persist across views, decided once per capture and per
+    part in 3D (all off by default): a part is never detected (``p_never``) or detected in only
+    ``sparse_keep`` of the views that see it (``p_sparse``); two fronts that touch in 3D are one
+    mask in ``merge_views`` of the views where both are seen (``p_merge_part`` per touching pair);
+    a front's handle is never found (``p_no_handle``); a front's typed label is swapped drawer
+    <-> door in every view (``p_label_part``); ``n_false_fronts`` rectangles fixed on static
+    surfaces (a window, an appliance panel) are detected as fronts wherever they are seen.
     """
 
     enabled: bool = True
@@ -224,19 +232,36 @@ class DetectionsConfig:
     detect_handles: bool = True
     min_area_px: int = 30
     score_range: list[float] = field(default_factory=lambda: [0.45, 0.98])
+    p_never: float = 0.0
+    p_sparse: float = 0.0
+    sparse_keep: float = 0.25
+    p_merge_part: float = 0.0
+    merge_views: float = 0.8
+    p_no_handle: float = 0.0
+    p_label_part: float = 0.0
+    n_false_fronts: int = 0
 
     def __post_init__(self):
         _check(self.labels in ("typed", "generic"), f"detections.labels = {self.labels!r} must be typed or generic")
-        for k in ("p_miss", "p_merge", "label_confusion"):
+        _check(self.n_false_fronts >= 0, f"detections.n_false_fronts = {self.n_false_fronts} must be >= 0")
+        for k in ("p_miss", "p_merge", "label_confusion", "p_never", "p_sparse", "sparse_keep", "p_merge_part",
+                  "merge_views", "p_no_handle", "p_label_part"):
             v = getattr(self, k)
             _check(0 <= v <= 1, f"detections.{k} = {v} must be in [0, 1]")
         _check(self.false_rate >= 0 and self.ragged_px >= 0 and self.boundary_noise_px >= 0,
                "detections noise parameters must be >= 0")
 
     @property
+    def persistent(self) -> bool:
+        """Whether any failure persists across views."""
+        return (self.p_never > 0 or self.p_sparse > 0 or self.p_merge_part > 0 or self.p_no_handle > 0
+                or self.p_label_part > 0 or self.n_false_fronts > 0)
+
+    @property
     def perfect(self) -> bool:
         return (self.p_miss == 0 and self.p_merge == 0 and self.ragged_px == 0
-                and self.boundary_noise_px == 0 and self.false_rate == 0 and self.label_confusion == 0)
+                and self.boundary_noise_px == 0 and self.false_rate == 0 and self.label_confusion == 0
+                and not self.persistent)
 
 
 @dataclass(frozen=True)

@@ -139,6 +139,115 @@ class DetectionStats:
     missed: int = 0
     merged: int = 0
     false: int = 0
+    world_false: int = 0  # detections of the false fronts fixed in the world
+
+
+@dataclass(frozen=True)
+class FalseFront:
+    """A rectangle fixed on a static surface that a detector takes for a front: ``centre`` [3]
+    (m, world), unit ``normal``, ``u`` (horizontal where the surface allows) and ``v`` in its
+    plane, half sizes ``half`` (m, along u and v), the label it is given."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    half: tuple[float, float]
+    label: str
+
+
+@dataclass(frozen=True)
+class PartFailures:
+    """Detector failures that persist across views, decided once per capture (entity indices of
+    the layout): ``never`` detected; ``sparse``: seen in a fraction of the views; ``merged``:
+    pairs of touching fronts given one mask in most views; ``no_handle``: the handle is never
+    found; ``swapped``: typed label drawer <-> door in every view; ``false_fronts``."""
+
+    never: frozenset = frozenset()
+    sparse: frozenset = frozenset()
+    merged: tuple[tuple[int, int], ...] = ()
+    no_handle: frozenset = frozenset()
+    swapped: frozenset = frozenset()
+    false_fronts: tuple[FalseFront, ...] = ()
+
+    def summary(self) -> dict:
+        return {"parts_never_detected": len(self.never), "parts_sparse": len(self.sparse),
+                "pairs_merged": len(self.merged), "handles_never_found": len(self.no_handle),
+                "labels_swapped": len(self.swapped), "false_fronts": len(self.false_fronts)}
+
+
+def touching_pairs(boxes: dict[int, tuple[np.ndarray, np.ndarray]], gap: float = 0.015) -> list[tuple[int, int]]:
+    """Pairs (a < b) of axis-aligned boxes ``{entity: (lo [3], hi [3])}`` (m) no farther apart
+    than ``gap`` along every axis."""
+    keys = sorted(boxes)
+    out = []
+    for i, a in enumerate(keys):
+        for b in keys[i + 1:]:
+            (la, ha), (lb, hb) = boxes[a], boxes[b]
+            if np.all(np.maximum(la, lb) - np.minimum(ha, hb) <= gap):
+                out.append((a, b))
+    return out
+
+
+def decide_part_failures(entities: list[DetectableEntity], front_boxes: dict[int, tuple[np.ndarray, np.ndarray]],
+                         cfg: DetectionsConfig, rng: np.random.Generator) -> PartFailures:
+    """Which parts fail in every view (:class:`PartFailures`, without the false fronts, which
+    need a view: :func:`place_false_fronts`). ``front_boxes``: each front's box in the kitchen's
+    frame, for which fronts touch. Draws from ``rng`` only for the failures that are on."""
+    fronts = [k for k, e in enumerate(entities) if e.kind == "front"]
+    parts = [k for k, e in enumerate(entities) if e.kind in ("front", "object")]
+
+    def pick(keys, p):
+        return frozenset(k for k in keys if rng.random() < p) if p > 0 else frozenset()
+
+    never = pick(parts, cfg.p_never)
+    sparse = pick([k for k in parts if k not in never], cfg.p_sparse)
+    merged = ()
+    if cfg.p_merge_part > 0:
+        merged = tuple(pr for pr in touching_pairs({k: front_boxes[k] for k in fronts if k in front_boxes})
+                       if rng.random() < cfg.p_merge_part)
+    no_handle = pick(fronts, cfg.p_no_handle)
+    swapped = pick([k for k in fronts if entities[k].typed_label in ("drawer", "door")], cfg.p_label_part)
+    return PartFailures(never, sparse, merged, no_handle, swapped)
+
+
+def _world_points(z: np.ndarray, intr: Intrinsics, c2w_cv: np.ndarray) -> np.ndarray:
+    """[H, W, 3] world points of a depth map (OpenCV camera ``c2w_cv``)."""
+    return (pixel_dirs(intr) * z[..., None]) @ c2w_cv[:3, :3].T + c2w_cv[:3, 3]
+
+
+def place_false_fronts(n: int, z: np.ndarray, normals_cam: np.ndarray, static: np.ndarray, intr: Intrinsics,
+                       c2w_cv: np.ndarray, typed: bool, rng: np.random.Generator) -> tuple[FalseFront, ...]:
+    """``n`` false fronts on static surfaces seen (facing the camera) in one view: each centred on
+    a random such pixel, 0.3-0.6 m wide and 0.3-0.7 m high in the surface's plane, labelled
+    ``front`` (or door / drawer with ``typed`` labels)."""
+    d = pixel_dirs(intr, normalize=True)
+    facing = static & (z > 0) & (np.einsum("hwc,hwc->hw", normals_cam, d) < -0.5)
+    ys, xs = np.nonzero(facing)
+    if n == 0 or len(ys) == 0:
+        return ()
+    X = _world_points(z, intr, c2w_cv)
+    out = []
+    for _ in range(n):
+        k = rng.integers(len(ys))
+        c = X[ys[k], xs[k]]
+        nrm = c2w_cv[:3, :3] @ normals_cam[ys[k], xs[k]]
+        nrm = nrm / np.linalg.norm(nrm)
+        u = np.cross([0.0, 0.0, 1.0], nrm)
+        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 0.3 else np.array([1.0, 0.0, 0.0])
+        v = np.cross(nrm, u)
+        label = ("door" if rng.random() < 0.5 else "drawer") if typed else "front"
+        out.append(FalseFront(c, nrm, u, v, (float(rng.uniform(0.15, 0.3)), float(rng.uniform(0.15, 0.35))), label))
+    return tuple(out)
+
+
+def false_front_mask(ff: FalseFront, z: np.ndarray, static: np.ndarray, intr: Intrinsics, c2w_cv: np.ndarray,
+                     tol: float = 0.02) -> np.ndarray:
+    """[H, W] bool: the pixels whose visible surface lies in the rectangle ``ff`` (within ``tol``
+    m of its plane): where it is seen, occlusions included."""
+    D = _world_points(z, intr, c2w_cv) - ff.centre
+    return (static & (z > 0) & (np.abs(D @ ff.normal) < tol) & (np.abs(D @ ff.u) < ff.half[0])
+            & (np.abs(D @ ff.v) < ff.half[1]))
 
 
 GENERIC = {"front": "front", "object": "object", "handle": "handle"}
@@ -186,32 +295,43 @@ def _false_mask(rng: np.random.Generator, static: np.ndarray) -> np.ndarray | No
 
 
 def simulate_detections(entity_map: np.ndarray, handle_map: np.ndarray, entities: list[DetectableEntity],
-                        cfg: DetectionsConfig, rng: np.random.Generator) -> tuple[np.ndarray, list[dict], DetectionStats]:
+                        cfg: DetectionsConfig, rng: np.random.Generator, failures: PartFailures | None = None,
+                        world_false: list[tuple[np.ndarray, str]] = ()) -> tuple[np.ndarray, list[dict], DetectionStats]:
     """A detector's instance masks for one frame.
 
     ``entity_map``: [H, W] entity index per pixel (-1 = nothing); ``handle_map``: [H, W] bool,
-    pixels of handles; ``entities[k]`` describes entity k. Returns (uint16 [H, W] label map with
-    ids local to the frame, [{"id", "label", "score"}], stats).
+    pixels of handles; ``entities[k]`` describes entity k; ``failures``: the failures that
+    persist across views (:func:`decide_part_failures`); ``world_false``: this view's masks of
+    the false fronts fixed in the world (:func:`false_front_mask`) with their labels. Returns
+    (uint16 [H, W] label map with ids local to the frame, [{"id", "label", "score"}], stats).
     """
     stats = DetectionStats()
     H, W = entity_map.shape
+    fail = failures or PartFailures()
     cands: list[tuple[np.ndarray, str, str]] = []  # (mask, kind, typed label)
     fronts: list[int] = []
+    cand_of: dict[int, int] = {}  # entity -> its body's candidate
     for k, ent in enumerate(entities):
-        if ent.kind == "none":
+        if ent.kind == "none" or k in fail.never:
             continue
         m = entity_map == k
         if not m.any():
             continue
+        if k in fail.sparse and rng.random() >= cfg.sparse_keep:
+            continue
+        typed = ent.typed_label
+        if k in fail.swapped:
+            typed = "door" if typed == "drawer" else "drawer"
         if ent.kind == "front":
             body, hand = m & ~handle_map, m & handle_map
             if body.sum() >= cfg.min_area_px:
                 fronts.append(len(cands))
-                cands.append((body, "front", ent.typed_label))
-            if cfg.detect_handles and hand.sum() >= cfg.min_area_px // 3:
+                cand_of[k] = len(cands)
+                cands.append((body, "front", typed))
+            if cfg.detect_handles and k not in fail.no_handle and hand.sum() >= cfg.min_area_px // 3:
                 cands.append((hand, "handle", "handle"))
         elif m.sum() >= cfg.min_area_px:
-            cands.append((m, "object", ent.typed_label))
+            cands.append((m, "object", typed))
     stats.candidates = len(cands)
 
     # merges of touching fronts (union-find over candidate indices)
@@ -232,6 +352,14 @@ def simulate_detections(entity_map: np.ndarray, handle_map: np.ndarray, entities
                     if ra != rb:
                         parent[rb] = ra
                         stats.merged += 1
+    for a, b in fail.merged:  # persistent merges: in most views where both are seen and touch
+        if a in cand_of and b in cand_of and rng.random() < cfg.merge_views:
+            ia, ib = cand_of[a], cand_of[b]
+            if (ndimage.binary_dilation(cands[ia][0], iterations=2) & cands[ib][0]).any():
+                ra, rb = find(ia), find(ib)
+                if ra != rb:
+                    parent[rb] = ra
+                    stats.merged += 1
     groups: dict[int, list[int]] = {}
     for i in range(len(cands)):
         groups.setdefault(find(i), []).append(i)
@@ -265,6 +393,11 @@ def simulate_detections(entity_map: np.ndarray, handle_map: np.ndarray, entities
             label = ["door", "drawer", "object"][rng.integers(3)]
         masks.append((m, label, float(rng.uniform(lo, (lo + hi) / 2))))
         stats.false += 1
+
+    for m, label in world_false:
+        if m.sum() >= cfg.min_area_px:
+            masks.append((_ragged(m, cfg, rng), label, float(rng.uniform(lo, hi))))
+            stats.world_false += 1
 
     # paint in a random order (later masks win overlaps), then give ids local to the frame
     label_map = np.zeros((H, W), np.uint16)

@@ -14,11 +14,16 @@ from drawer_lib.io.images import read_u16
 from drawer_lib.synth.config import DepthSensorConfig, DetectionsConfig, MonoConfig
 from drawer_lib.synth.sensors import (
     DetectableEntity,
+    FalseFront,
+    PartFailures,
+    decide_part_failures,
     depth_edges,
+    false_front_mask,
     mono_depth,
     mono_normals,
     sensor_depth,
     simulate_detections,
+    touching_pairs,
 )
 
 K = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
@@ -201,3 +206,110 @@ def test_sensor_configs_reject_bad_values():
         DetectionsConfig(labels="fancy")
     with pytest.raises(ConfigError, match="p_miss"):
         dataclasses.replace(DetectionsConfig(), p_miss=-0.1)
+    with pytest.raises(ConfigError, match="p_never"):
+        DetectionsConfig(p_never=1.5)
+    with pytest.raises(ConfigError, match="n_false_fronts"):
+        DetectionsConfig(n_false_fronts=-1)
+
+
+CLEAN = dict(p_miss=0.0, p_merge=0.0, ragged_px=0, boundary_noise_px=0, false_rate=0.0, label_confusion=0.0,
+             min_area_px=5)
+
+
+def _labels_over_views(fail, n=200, rng=None, **cfg):
+    """How often each label is detected over ``n`` views of the test scene with ``fail``."""
+    ent, handle, ents = _scene()
+    c = DetectionsConfig(**{**CLEAN, **cfg})
+    counts, n_dets = {}, []
+    for _ in range(n):
+        _, dets, _ = simulate_detections(ent, handle, ents, c, rng, fail)
+        for d in dets:
+            counts[d["label"]] = counts.get(d["label"], 0) + 1
+        n_dets.append(len(dets))
+    return counts, n_dets
+
+
+def test_a_part_never_detected_is_missing_from_every_view(rng):
+    counts, _ = _labels_over_views(PartFailures(never=frozenset({1})), rng=rng)
+    assert counts == {"door": 200, "cup": 200}  # the drawer and its handle
+
+
+def test_a_sparse_part_is_seen_in_a_quarter_of_its_views(rng):
+    counts, _ = _labels_over_views(PartFailures(sparse=frozenset({2})), rng=rng)
+    assert 30 <= counts["door"] <= 70 and counts["drawer"] == 200  # Binomial(200, 0.25): 50 ± 6
+
+
+def test_a_handle_never_found_and_a_label_swapped_in_every_view(rng):
+    counts, _ = _labels_over_views(PartFailures(no_handle=frozenset({1}), swapped=frozenset({1, 2})), n=50, rng=rng)
+    assert "handle" not in counts and counts == {"door": 50, "drawer": 50, "cup": 50}
+    # generic labels have nothing to swap
+    counts, _ = _labels_over_views(PartFailures(swapped=frozenset({1})), n=5, rng=rng, labels="generic")
+    assert counts == {"front": 10, "handle": 5, "object": 5}
+
+
+def test_touching_fronts_merged_in_most_views(rng):
+    counts, n_dets = _labels_over_views(PartFailures(merged=((1, 2),)), rng=rng, detect_handles=False)
+    merged = sum(n == 2 for n in n_dets)  # drawer + door as one mask, and the cup
+    assert set(n_dets) <= {2, 3} and 140 <= merged <= 180  # Binomial(200, 0.8): 160 ± 6
+    # fronts that do not touch in the image are never merged
+    ent, handle, ents = _scene()
+    ent[5:20, 25:30] = 0  # a 5-px gap: farther than the 2-px dilation reaches
+    _, dets, st = simulate_detections(ent, handle, ents, DetectionsConfig(**CLEAN, merge_views=1.0), rng,
+                                      PartFailures(merged=((1, 2),)))
+    assert st.merged == 0 and {d["label"] for d in dets} >= {"drawer", "door"}
+
+
+def test_touching_pairs_of_boxes():
+    box = lambda lo, hi: (np.array(lo, float), np.array(hi, float))  # noqa: E731
+    boxes = {1: box([0, 0, 0], [0.5, 0.02, 0.7]), 2: box([0.503, 0, 0], [1.0, 0.02, 0.7]),  # 3 mm gap
+             3: box([0, 0, 0.72], [0.5, 0.02, 0.9]),  # 2 cm above 1: too far
+             4: box([2, 0, 0], [2.5, 0.02, 0.7])}
+    assert touching_pairs(boxes) == [(1, 2)]
+    assert touching_pairs(boxes, gap=0.025) == [(1, 2), (1, 3), (2, 3)]
+
+
+def test_part_failures_are_decided_per_part_and_draw_nothing_when_off():
+    ent, handle, ents = _scene()
+    boxes = {1: (np.zeros(3), np.array([0.5, 0.02, 0.7])), 2: (np.array([0.5, 0, 0]), np.array([1.0, 0.02, 0.7]))}
+    r = np.random.default_rng(3)
+    state = r.bit_generator.state
+    assert decide_part_failures(ents, boxes, DetectionsConfig(), r) == PartFailures()
+    assert r.bit_generator.state == state
+    every = DetectionsConfig(p_never=0.0, p_sparse=1.0, p_merge_part=1.0, p_no_handle=1.0, p_label_part=1.0)
+    f = decide_part_failures(ents, boxes, every, r)
+    assert f.sparse == {1, 2, 3} and f.merged == ((1, 2),) and f.no_handle == {1, 2} and f.swapped == {1, 2}
+    f = decide_part_failures(ents, boxes, dataclasses.replace(every, p_never=1.0), r)
+    assert f.never == {1, 2, 3} and not f.sparse  # a part never seen is not also sparse
+
+
+def test_a_false_front_is_fixed_in_the_world_and_occluded_like_a_surface():
+    H, W = K.height, K.width
+    z, _ = plane(2.0, H, W)
+    static = np.ones((H, W), bool)
+    c2w = np.eye(4)
+    ff = FalseFront(np.array([0.0, 0.0, 2.0]), np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0]),
+                    np.array([0.0, 1.0, 0.0]), (0.2, 0.1), "front")
+    m = false_front_mask(ff, z, static, K, c2w)
+    # 0.4 m x 0.2 m at 2 m with f = 50 px: the pixel centres within 5 x 2.5 px of (32, 24)
+    ys, xs = np.nonzero(m)
+    assert m.sum() == 40 and (xs.min(), xs.max(), ys.min(), ys.max()) == (27, 36, 22, 25)
+    # seen from elsewhere it stays where it is in the world: the camera 0.4 m to the right sees it shifted left
+    c2w_r = np.eye(4)
+    c2w_r[0, 3] = 0.4
+    xs_r = np.nonzero(false_front_mask(ff, z, static, K, c2w_r))[1]
+    assert xs_r.min() == xs.min() - 10
+    # a part in front of it hides it; a surface 5 cm behind it is not it
+    occ = static.copy()
+    occ[:, :32] = False
+    assert false_front_mask(ff, z, occ, K, c2w).sum() == 20
+    assert not false_front_mask(ff, z + 0.05, static, K, c2w).any()
+
+
+def test_a_capture_with_persistent_failures_reports_them(tmp_path, tiny_scene):
+    from helpers import render_capture, sensor_cfg
+
+    cap = sensor_cfg(detections="persistent")
+    cap = dataclasses.replace(cap, detections=dataclasses.replace(cap.detections, p_never=0.5, n_false_fronts=2))
+    _, metrics = render_capture(tiny_scene, cap, tmp_path)
+    assert metrics["detections_false_fronts"] == 2 and metrics["detections_world_false"] > 0
+    assert metrics["detections_parts_never_detected"] >= 1
