@@ -23,7 +23,7 @@ def main() -> None:
     a = ap.parse_args()
     p = yaml.safe_load((ROOT / "params.yaml").read_text())
     run = Run(ROOT, ROOT / p["paths"]["out"], ROOT / p["paths"]["reports"], ROOT / p["paths"]["bench"], a.scene)
-    seeds = [] if a.no_seeds else seed_runs(ROOT, run)
+    seeds = [] if a.no_seeds else seed_runs(run, p)
     block = results_block(run, p["appearance_variants"], p["geometry_variants"], seeds, p["seed"])
     if a.write:
         readme = ROOT / "README.md"

@@ -12,6 +12,7 @@ seed-1 -S seed=1`` and ``dvc queue start``; their finished experiments of the cu
 are found through ``dvc exp show``.
 """
 
+import dataclasses
 import json
 import os
 import platform
@@ -68,15 +69,18 @@ class Run:
         return self.read(self.sp.metrics(stage))
 
 
-def seed_runs(root: Path, base: Run) -> list[tuple[int, Run]]:
-    """The finished DVC experiments of the current commit that differ from the workspace's
-    parameters in ``seed`` only (e.g. ``dvc exp run --queue -S seed=1``), as (seed, run reading
-    their tracked metrics), by seed (``dvc exp show --json``; none when DVC cannot tell)."""
-    r = subprocess.run([sys.executable, "-m", "dvc", "exp", "show", "--json"], cwd=root, capture_output=True, text=True, check=False)
-    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=False).stdout.strip()
+def seed_runs(base: Run, params: dict) -> list[tuple[int, Run]]:
+    """The finished DVC experiments of the current commit whose parameters differ from the
+    workspace's ``params`` in ``seed`` only (e.g. ``dvc exp run --queue -S seed=1``), as (seed,
+    run reading their tracked metrics), by seed (``dvc exp show --json``; none when DVC cannot
+    tell)."""
+    r = subprocess.run([sys.executable, "-m", "dvc", "exp", "show", "--json"], cwd=base.root, capture_output=True,
+                       text=True, check=False)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=base.root, capture_output=True, text=True,
+                          check=False).stdout.strip()
     try:
-        return seed_experiments(json.loads(r.stdout), head, yaml_params(root), base)
-    except (ValueError, OSError):
+        return seed_experiments(json.loads(r.stdout), head, params, base)
+    except ValueError:
         return []
 
 
@@ -97,17 +101,12 @@ def seed_experiments(revs: list[dict], head: str, params: dict, base: Run) -> li
                 if {k: v for k, v in p.items() if k != "seed"} != rest:
                     continue
                 tracked = {path: m.get("data", {}) for path, m in (data.get("metrics") or {}).items()}
-                out.append((int(p["seed"]), Run(base.root, base.out, base.reports, base.bench, base.scene, tracked)))
+                out.append((int(p["seed"]), dataclasses.replace(base, tracked=tracked)))
     return sorted(out, key=lambda t: t[0])
 
 
-def yaml_params(root: Path) -> dict:
-    import yaml
-
-    return yaml.safe_load((Path(root) / "params.yaml").read_text())
-
-
-# the figures whose spread over seeds the table shows: (row, what, figure of a run, number format, unit)
+# the figures whose spread over seeds the table shows: (row, what, figure of a run, number format, unit);
+# each is read from metrics DVC tracks (the twin's are inside its output folder, so it has none)
 SEED_FIGURES = (
     ("geometry, neural SDF", "Chamfer-L1", lambda r: 1000 * r.metrics("mesh")["chamfer_l1"], "{:.2f}", " mm"),
     ("appearance, the paper's method (`movable_gs_ste`)", "PSNR",
@@ -115,7 +114,6 @@ SEED_FIGURES = (
     ("articulation (", "precision / recall / EA-score",
      lambda r: tuple(r.metrics("evaluate").get(k, float("nan")) for k in ("precision", "recall", "ea_score")),
      "{:.3f}", ""),
-    ("the twin (", "opened PSNR", lambda r: r.metrics("twin")["open_psnr"], "{:.2f}", " dB"),
     ("the simulated twin (", "motion EMD", lambda r: r.metrics("evaluate").get("emd", float("nan")), "{:.2e}", ""),
 )
 

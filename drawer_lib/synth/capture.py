@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from drawer_lib.errors import NonFiniteError
-from drawer_lib.geometry.camera import Intrinsics, invert_rigid, opencv_to_opengl
+from drawer_lib.geometry.camera import Camera, Intrinsics, invert_rigid, opencv_to_opengl
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture, Frame, split_every, write_transforms
 from drawer_lib.io.images import write_depth, write_json, write_rgb, write_u16
@@ -121,18 +121,17 @@ def render_synth_capture(scene: str, synth: SynthConfig, sensors: Sensors, test_
                 fr["mono_normal_file_path"] = f"{D['mono_normal']}/{stem}.npy"
                 np.save(out / fr["mono_normal_file_path"], mono_normals(n_cam, mono_cfg, rng))
             if det_cfg.enabled:
-                if k == 0 and det_cfg.n_false_fronts > 0:
+                cam = Camera(intr, w2c)
+                if k == 0 and det_cfg.n_false_fronts > 0:  # placed where the first view sees static surfaces
                     failures = dataclasses.replace(failures, false_fronts=place_false_fronts(
-                        det_cfg.n_false_fronts, z, n_cam, ent == 0, intr, poses_cv[k], det_cfg.labels == "typed",
-                        part_rng))
-                world_false = [(false_front_mask(ff, z, ent == 0, intr, poses_cv[k]), ff.label)
-                               for ff in failures.false_fronts]
+                        det_cfg.n_false_fronts, z, n_cam, ent == 0, cam, det_cfg.labels == "typed", part_rng))
+                world_false = [(false_front_mask(ff, z, ent == 0, cam), ff.label) for ff in failures.false_fronts]
                 lab, dets, st = simulate_detections(ent, handle, detectables, det_cfg, rng, failures, world_false)
                 fr["detections_path"] = f"{D['detections']}/{stem}.png"
                 write_u16(out / fr["detections_path"], lab)
                 write_json((out / fr["detections_path"]).with_suffix(".json"), dets, indent=None)
-                for f in ("candidates", "detected", "missed", "merged", "false", "world_false"):
-                    setattr(dstats, f, getattr(dstats, f) + getattr(st, f))
+                for f in dataclasses.fields(DetectionStats):
+                    setattr(dstats, f.name, getattr(dstats, f.name) + getattr(st, f.name))
                 n_dets.append(len(dets))
             inst = np.where(ent >= 0, inst_of_entity[np.maximum(ent, 0)], 0).astype(np.uint16)
             write_u16(out / D["gt_instances"] / f"{stem}.png", inst)

@@ -11,7 +11,7 @@ import numpy as np
 from scipy import ndimage
 
 from drawer_lib.errors import InputError
-from drawer_lib.geometry.camera import Intrinsics, pixel_dirs
+from drawer_lib.geometry.camera import Camera, Intrinsics, pixel_dirs
 from drawer_lib.synth.config import DepthSensorConfig, DetectionsConfig, MonoConfig
 
 
@@ -211,27 +211,29 @@ def decide_part_failures(entities: list[DetectableEntity], front_boxes: dict[int
     return PartFailures(never, sparse, merged, no_handle, swapped)
 
 
-def _world_points(z: np.ndarray, intr: Intrinsics, c2w_cv: np.ndarray) -> np.ndarray:
-    """[H, W, 3] world points of a depth map (OpenCV camera ``c2w_cv``)."""
-    return (pixel_dirs(intr) * z[..., None]) @ c2w_cv[:3, :3].T + c2w_cv[:3, 3]
+def _world_points(z: np.ndarray, cam: Camera) -> np.ndarray:
+    """[H, W, 3] world points of the z-depth map ``z`` seen by ``cam``."""
+    o, d = cam.rays()
+    return o + d * z[..., None]
 
 
-def place_false_fronts(n: int, z: np.ndarray, normals_cam: np.ndarray, static: np.ndarray, intr: Intrinsics,
-                       c2w_cv: np.ndarray, typed: bool, rng: np.random.Generator) -> tuple[FalseFront, ...]:
+def place_false_fronts(n: int, z: np.ndarray, normals_cam: np.ndarray, static: np.ndarray, cam: Camera,
+                       typed: bool, rng: np.random.Generator) -> tuple[FalseFront, ...]:
     """``n`` false fronts on static surfaces seen (facing the camera) in one view: each centred on
     a random such pixel, 0.3-0.6 m wide and 0.3-0.7 m high in the surface's plane, labelled
     ``front`` (or door / drawer with ``typed`` labels)."""
-    d = pixel_dirs(intr, normalize=True)
+    d = pixel_dirs(cam.intrinsics, normalize=True)
     facing = static & (z > 0) & (np.einsum("hwc,hwc->hw", normals_cam, d) < -0.5)
     ys, xs = np.nonzero(facing)
     if n == 0 or len(ys) == 0:
         return ()
-    X = _world_points(z, intr, c2w_cv)
+    X = _world_points(z, cam)
+    R = cam.c2w[:3, :3]
     out = []
     for _ in range(n):
         k = rng.integers(len(ys))
         c = X[ys[k], xs[k]]
-        nrm = c2w_cv[:3, :3] @ normals_cam[ys[k], xs[k]]
+        nrm = R @ normals_cam[ys[k], xs[k]]
         nrm = nrm / np.linalg.norm(nrm)
         u = np.cross([0.0, 0.0, 1.0], nrm)
         u = u / np.linalg.norm(u) if np.linalg.norm(u) > 0.3 else np.array([1.0, 0.0, 0.0])
@@ -241,11 +243,10 @@ def place_false_fronts(n: int, z: np.ndarray, normals_cam: np.ndarray, static: n
     return tuple(out)
 
 
-def false_front_mask(ff: FalseFront, z: np.ndarray, static: np.ndarray, intr: Intrinsics, c2w_cv: np.ndarray,
-                     tol: float = 0.02) -> np.ndarray:
-    """[H, W] bool: the pixels whose visible surface lies in the rectangle ``ff`` (within ``tol``
-    m of its plane): where it is seen, occlusions included."""
-    D = _world_points(z, intr, c2w_cv) - ff.centre
+def false_front_mask(ff: FalseFront, z: np.ndarray, static: np.ndarray, cam: Camera, tol: float = 0.02) -> np.ndarray:
+    """[H, W] bool: the pixels of ``cam``'s view whose visible surface lies in the rectangle ``ff``
+    (within ``tol`` m of its plane): where it is seen, occlusions included."""
+    D = _world_points(z, cam) - ff.centre
     return (static & (z > 0) & (np.abs(D @ ff.normal) < tol) & (np.abs(D @ ff.u) < ff.half[0])
             & (np.abs(D @ ff.v) < ff.half[1]))
 
@@ -343,23 +344,27 @@ def simulate_detections(entity_map: np.ndarray, handle_map: np.ndarray, entities
             a = parent[a]
         return a
 
+    grown: dict[int, np.ndarray] = {}
+
+    def touch(a: int, b: int) -> bool:  # the two candidates' masks within 2 px of each other
+        if a not in grown:
+            grown[a] = ndimage.binary_dilation(cands[a][0], iterations=2)
+        return bool((grown[a] & cands[b][0]).any())
+
+    def merge(a: int, b: int) -> None:
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[rb] = ra
+            stats.merged += 1
+
     if cfg.p_merge > 0 and len(fronts) > 1:
-        grown = {i: ndimage.binary_dilation(cands[i][0], iterations=2) for i in fronts}
         for ai, a in enumerate(fronts):
             for b in fronts[ai + 1:]:
-                if (grown[a] & cands[b][0]).any() and rng.random() < cfg.p_merge:
-                    ra, rb = find(a), find(b)
-                    if ra != rb:
-                        parent[rb] = ra
-                        stats.merged += 1
+                if touch(a, b) and rng.random() < cfg.p_merge:
+                    merge(a, b)
     for a, b in fail.merged:  # persistent merges: in most views where both are seen and touch
-        if a in cand_of and b in cand_of and rng.random() < cfg.merge_views:
-            ia, ib = cand_of[a], cand_of[b]
-            if (ndimage.binary_dilation(cands[ia][0], iterations=2) & cands[ib][0]).any():
-                ra, rb = find(ia), find(ib)
-                if ra != rb:
-                    parent[rb] = ra
-                    stats.merged += 1
+        if a in cand_of and b in cand_of and rng.random() < cfg.merge_views and touch(cand_of[a], cand_of[b]):
+            merge(cand_of[a], cand_of[b])
     groups: dict[int, list[int]] = {}
     for i in range(len(cands)):
         groups.setdefault(find(i), []).append(i)

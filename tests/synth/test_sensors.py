@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from drawer_lib.geometry.camera import Intrinsics, pixel_dirs
+from drawer_lib.geometry.camera import Camera, Intrinsics, pixel_dirs
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.images import read_u16
@@ -286,23 +286,23 @@ def test_a_false_front_is_fixed_in_the_world_and_occluded_like_a_surface():
     H, W = K.height, K.width
     z, _ = plane(2.0, H, W)
     static = np.ones((H, W), bool)
-    c2w = np.eye(4)
+    cam = Camera(K, np.eye(4))
     ff = FalseFront(np.array([0.0, 0.0, 2.0]), np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0]),
                     np.array([0.0, 1.0, 0.0]), (0.2, 0.1), "front")
-    m = false_front_mask(ff, z, static, K, c2w)
+    m = false_front_mask(ff, z, static, cam)
     # 0.4 m x 0.2 m at 2 m with f = 50 px: the pixel centres within 5 x 2.5 px of (32, 24)
     ys, xs = np.nonzero(m)
     assert m.sum() == 40 and (xs.min(), xs.max(), ys.min(), ys.max()) == (27, 36, 22, 25)
     # seen from elsewhere it stays where it is in the world: the camera 0.4 m to the right sees it shifted left
-    c2w_r = np.eye(4)
-    c2w_r[0, 3] = 0.4
-    xs_r = np.nonzero(false_front_mask(ff, z, static, K, c2w_r))[1]
+    w2c_r = np.eye(4)
+    w2c_r[0, 3] = -0.4
+    xs_r = np.nonzero(false_front_mask(ff, z, static, Camera(K, w2c_r)))[1]
     assert xs_r.min() == xs.min() - 10
     # a part in front of it hides it; a surface 5 cm behind it is not it
     occ = static.copy()
     occ[:, :32] = False
-    assert false_front_mask(ff, z, occ, K, c2w).sum() == 20
-    assert not false_front_mask(ff, z + 0.05, static, K, c2w).any()
+    assert false_front_mask(ff, z, occ, cam).sum() == 20
+    assert not false_front_mask(ff, z + 0.05, static, cam).any()
 
 
 def test_a_capture_with_persistent_failures_reports_them(tmp_path, tiny_scene):
