@@ -96,6 +96,37 @@ class HandlesConfig:
 
 
 @dataclass(frozen=True)
+class RectifyConfig:
+    """Rectified fronts (:mod:`drawer_lib.articulation.rectify`): ``enabled`` (false: the
+    handle evidence of the masks is the faces of the mesh they cover), the grid's ``res`` (m per
+    cell) and ``margin`` (m beyond the rectangle); a view counts where the front faces it within
+    ``max_angle_deg`` and the ray-cast surface is not nearer than the cell by more than
+    ``occlusion_tol`` (m, + 2 % of the depth); the handle map samples ``handle_offset`` (m) in
+    front of the plane. A handle cell is seen in at least ``min_views`` views and covered in at
+    least ``min_rate`` of them; a handle is at least ``min_cells`` such cells linked at 1.5 cells."""
+
+    enabled: bool = True
+    res: float = 0.004
+    margin: float = 0.03
+    max_angle_deg: float = 75.0
+    occlusion_tol: float = 0.05
+    handle_offset: float = 0.02
+    min_views: int = 3
+    min_rate: float = 0.3
+    min_cells: int = 8
+
+    def __post_init__(self):
+        if not 0 < self.res <= 0.05:
+            raise ConfigError(f"articulate.rectify.res = {self.res} must be in (0, 0.05] m")
+        if self.margin < 0 or self.occlusion_tol < 0 or self.handle_offset < 0:
+            raise ConfigError("articulate.rectify: margin, occlusion_tol and handle_offset must be >= 0")
+        if not 0 < self.max_angle_deg < 90:
+            raise ConfigError(f"articulate.rectify.max_angle_deg = {self.max_angle_deg} must be in (0, 90)")
+        if not 0 < self.min_rate <= 1 or self.min_views < 1 or self.min_cells < 1:
+            raise ConfigError("articulate.rectify: need 0 < min_rate <= 1, min_views >= 1, min_cells >= 1")
+
+
+@dataclass(frozen=True)
 class TypesConfig:
     """The type decision (:mod:`drawer_lib.articulation.decide`). ``rule: score`` (default): a
     linear score per hypothesis over the front's evidence (:mod:`drawer_lib.articulation.scoring`)
@@ -111,12 +142,15 @@ class TypesConfig:
     label votes are evidence (false: ignored). Either rule: a front without a handle that
     detections matched in fewer than ``min_support`` views is a fixed panel (a front seen in many
     views, in a carcass, is rarely fixed even when its handle is too small to find); a front with
-    a handle or enough support is typed."""
+    a handle or enough support is typed. A score decision whose margin over the runner-up is
+    below ``low_margin`` (log-odds) is marked ``low_margin`` in ``decisions.json`` and
+    ``parts.json``, listed by the report and marked in the viewer."""
 
     rule: str = "score"
     weights: str = "fitted"
     prior: dict[str, dict[str, float]] = field(default_factory=prior_weights)
     min_support: int = 5
+    low_margin: float = 1.0
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
@@ -131,6 +165,8 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if self.min_support < 0:
             raise ConfigError(f"articulate.types.min_support = {self.min_support} must be >= 0")
+        if not self.low_margin >= 0:
+            raise ConfigError(f"articulate.types.low_margin = {self.low_margin} must be >= 0")
         check_weights(self.prior, "articulate.types.prior")
 
 
@@ -189,5 +225,6 @@ class ArticulateConfig:
     estimator: str = "geometric"
     fronts: FrontsConfig = field(default_factory=FrontsConfig)
     handles: HandlesConfig = field(default_factory=HandlesConfig)
+    rectify: RectifyConfig = field(default_factory=RectifyConfig)
     types: TypesConfig = field(default_factory=TypesConfig)
     joints: JointsConfig = field(default_factory=JointsConfig)

@@ -17,6 +17,8 @@ place of the peak:
 | no handle | not articulated (a fixed panel) |
 """
 
+import numpy as np
+
 from drawer_lib.articulation.config import TypesConfig
 from drawer_lib.articulation.scoring import Evidence, door_features, features, score
 from drawer_lib.articulation.vocab import HYPOTHESES, Decision, Handle
@@ -47,13 +49,32 @@ def decide_by_handle(h: Handle | None, labels: dict, cfg: TypesConfig) -> Decisi
 
 def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str, float]]) -> tuple[Decision, dict]:
     """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
-    for ``decisions.json`` (features, door features per hinge side, scores)."""
+    for ``decisions.json`` (features, door features per hinge side, scores, the runner-up, the
+    margin and the confidence: :func:`margin_confidence`)."""
     common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels)
     door = {side: door_features(ev, side) for side in ("left", "right")}
     scores = score(common, door, weights)
     best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
-    runner_up = max((v for k, v in scores.items() if k != best), default=float("-inf"))
+    runner_up, margin, conf = margin_confidence(scores, best)
     fam, _, hinge = best.partition("_")
-    dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up:.2f})")
+    dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up} {scores[runner_up]:.2f})",
+                   margin=margin, confidence=conf)
     r4 = lambda d: {k: round(float(v), 4) for k, v in d.items()}  # noqa: E731
-    return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()}, "scores": r4(scores)}
+    return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()}, "scores": r4(scores),
+                 "runner_up": runner_up, "margin": round(margin, 4), "confidence": round(conf, 4)}
+
+
+def margin_confidence(scores: dict[str, float], best: str) -> tuple[str, float, float]:
+    """(runner-up hypothesis, margin, confidence) of the choice ``best``: the margin is its
+    score minus the runner-up's (a log-odds: the scores are a multinomial logistic model's), the
+    confidence its softmax probability over all hypotheses. A margin near 0 is a decision that
+    a small change of the evidence flips (two hinge sides with nothing to tell them apart tie
+    at 0)."""
+    others = [k for k in scores if k != best]
+    if not others:
+        return best, float("inf"), 1.0
+    runner_up = max(others, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
+    s = np.array([scores[k] for k in scores], np.float64)
+    p = np.exp(s - s.max())
+    conf = float(np.exp(scores[best] - s.max()) / p.sum())
+    return runner_up, float(scores[best] - scores[runner_up]), conf

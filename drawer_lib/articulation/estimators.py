@@ -8,7 +8,7 @@ from collections.abc import Callable
 from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Part
 
-# fn(mesh, segments, cam_centers, cfg, handle_hits=..., masks_of=..., face_views=...) -> (parts, decisions)
+# fn(mesh, segments, cam_centers, cfg, handle_hits=..., masks_of=..., face_views=..., weights=..., views=...) -> (parts, decisions)
 Estimator = Callable[..., tuple[list[Part], list[dict]]]
 _REGISTRY: dict[str, Estimator] = {}
 SLOTS = {"3doi": "3DOI (SAM-transformer ViT-B, checkpoint_20230515.pth)",

@@ -140,7 +140,7 @@ def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: Hand
     ev = np.percentile(pv, hi) - np.percentile(pv, lo)
     round_ = max(eu, ev) < cfg.round_aspect * min(eu, ev) + cfg.round_slack
     orient = "round" if round_ else ("horizontal" if eu > ev else "vertical")
-    return Handle(a_u, a_v, orient, int(len(pts)), source)
+    return Handle(a_u, a_v, orient, len(pts), source)
 
 
 def protrusions(front: Front, mesh_points: Float[np.ndarray, "P 3"], normals: Float[np.ndarray, "P 3"],
@@ -164,16 +164,41 @@ def protrusions(front: Front, mesh_points: Float[np.ndarray, "P 3"], normals: Fl
 
 def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarray, face_centers: np.ndarray,
                   edge_length: float, cfg: HandlesConfig, edge_frac: float, stack_gap: float,
-                  handle_hits: np.ndarray | None = None, face_views: np.ndarray | None = None
+                  handle_hits: np.ndarray | None = None, face_views: np.ndarray | None = None,
+                  image_cells: tuple[np.ndarray, np.ndarray, float, int] | None = None
                   ) -> tuple[list[Handle | None], list[tuple[int, int]]]:
     """Each front's handle (or None) from both kinds of evidence, the masks' first; and the
     stacked pulls resolved (:func:`resolve_stacked_pulls`, when ``cfg.stacked_pulls``).
     ``mesh_pts`` / ``pt_normal`` [P, 3]: points sampled on the mesh and their normals;
-    ``face_centers`` [F, 3]; ``edge_length``: the mesh's typical edge (m); ``handle_hits`` [F]:
-    in how many views a "handle" mask covers each face; ``face_views`` [F]: in how many views
-    each face is visible (needed by ``evidence: view_rate``)."""
+    ``face_centers`` [F, 3]; ``edge_length``: the mesh's typical edge (m). The masks' evidence:
+    ``image_cells`` = (points [M, 3], rates [M], link radius m, min points) of the rectified
+    fronts (:func:`~drawer_lib.articulation.rectify.rectify_fronts`; source ``images``), else
+    the mesh faces they cover: ``handle_hits`` [F], in how many views a "handle" mask covers
+    each face, and ``face_views`` [F], in how many views each face is visible (needed by
+    ``evidence: view_rate``; source ``masks``)."""
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
+    by_geo = heaviest(handle_candidates(fronts, geo_pts, cfg, cfg.geo_radius, cfg.geo_min_points))
+    if image_cells is not None:
+        pts, rates, radius, min_points = image_cells
+        mask_cands = handle_candidates(fronts, pts, cfg, radius, min_points, weights=rates)
+        source = "images"
+    else:
+        mask_cands = _face_candidates(fronts, face_centers, edge_length, cfg, handle_hits, face_views)
+        source = "masks"
+    if cfg.stacked_pulls:
+        by_mask, gave_up = resolve_stacked_pulls(fronts, mask_cands, edge_frac, stack_gap, cfg.stacked_plane_tol,
+                                                 cfg.stacked_min_overlap)
+    else:
+        by_mask, gave_up = heaviest(mask_cands), []
+    handles = [describe_handle(f, m, source, cfg) if m is not None else describe_handle(f, g, "geometry", cfg)
+               for f, g, m in zip(fronts, by_geo, by_mask)]
+    return handles, gave_up
+
+
+def _face_candidates(fronts: list[Front], face_centers: np.ndarray, edge_length: float, cfg: HandlesConfig,
+                     handle_hits: np.ndarray | None, face_views: np.ndarray | None) -> Candidates:
+    """Handle candidates from the mesh faces that "handle" masks cover (:func:`front_handles`)."""
     hit_faces = np.nonzero(handle_hits >= cfg.min_hits)[0] if handle_hits is not None else np.zeros(0, np.int64)
     hit_w = None
     if cfg.evidence == "view_rate" and handle_hits is not None:
@@ -183,14 +208,5 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
         if len(face_views) != len(handle_hits):
             raise InputError(f"articulate: face_views has {len(face_views)} entries, handle_hits {len(handle_hits)}")
         hit_w = np.clip(handle_hits[hit_faces] / np.maximum(face_views[hit_faces], 1), 0.0, 1.0)
-    by_geo = heaviest(handle_candidates(fronts, geo_pts, cfg, cfg.geo_radius, cfg.geo_min_points))
     radius = max(cfg.geo_radius, cfg.mask_radius_spacing * edge_length)
-    mask_cands = handle_candidates(fronts, face_centers[hit_faces], cfg, radius, cfg.mask_min_points, weights=hit_w)
-    if cfg.stacked_pulls:
-        by_mask, gave_up = resolve_stacked_pulls(fronts, mask_cands, edge_frac, stack_gap, cfg.stacked_plane_tol,
-                                                 cfg.stacked_min_overlap)
-    else:
-        by_mask, gave_up = heaviest(mask_cands), []
-    handles = [describe_handle(f, m, "masks", cfg) if m is not None else describe_handle(f, g, "geometry", cfg)
-               for f, g, m in zip(fronts, by_geo, by_mask)]
-    return handles, gave_up
+    return handle_candidates(fronts, face_centers[hit_faces], cfg, radius, cfg.mask_min_points, weights=hit_w)

@@ -14,10 +14,17 @@ import trimesh
 
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.decide import decide_by_handle, decide_by_score
-from drawer_lib.articulation.fronts import abutting_edges, fit_front, refine_with_masks, sample_points, share_edges
+from drawer_lib.articulation.fronts import (
+    abutting_edges,
+    fit_front,
+    refine_with_masks,
+    sample_points,
+    share_edges,
+)
 from drawer_lib.articulation.handles import front_handles
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
 from drawer_lib.articulation.probes import carcass_depth, rail_extent, rail_run
+from drawer_lib.articulation.rectify import View, rectify_fronts
 from drawer_lib.articulation.scoring import Evidence
 from drawer_lib.articulation.vocab import Decision
 from drawer_lib.geometry.frames import UP
@@ -68,15 +75,18 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
 
 def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,
                 handle_hits: np.ndarray | None = None, masks_of: Callable | None = None,
-                face_views: np.ndarray | None = None, weights: dict[str, dict[str, float]] | None = None
-                ) -> tuple[list[Part], list[dict]]:
+                face_views: np.ndarray | None = None, weights: dict[str, dict[str, float]] | None = None,
+                views: list[View] | None = None) -> tuple[list[Part], list[dict]]:
     """(parts, per-segment decisions for the report). ``cam_centers`` [C, 3]: the train cameras
     (a front's normal points toward them); ``handle_hits`` [F]: in how many views a "handle"
     mask covers each face; ``face_views`` [F]: in how many views each face is visible (needed by
     ``handles.evidence: view_rate``); ``masks_of(segment)`` -> [(bool mask [H, W], Camera)]: the
     2D masks a segment matched (they refine its rectangle); None uses the mesh alone;
-    ``weights``: the score rule's {hypothesis: {feature: weight}} (None: ``cfg.types.prior``).
-    A front's features do not depend on the weights."""
+    ``weights``: the score rule's {hypothesis: {feature: weight}} (None: ``cfg.types.prior``);
+    ``views``: the train views with their ray-cast depth and handle masks
+    (:class:`~drawer_lib.articulation.rectify.View`): with ``cfg.rectify.enabled`` the handle
+    masks are read on the rectified fronts instead of the faces they cover. A front's features
+    do not depend on the weights."""
     if weights is None:
         weights = cfg.types.prior
     parts: list[Part] = []
@@ -86,9 +96,16 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     mesh_pts, pt_face = sample_points(mesh, np.arange(len(mesh.faces)), cfg.handles.sample_per_m2, seed=1)
     pt_normal = np.asarray(mesh.face_normals)[pt_face]
     edge = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
+    rc = cfg.rectify
+    image_cells = None
+    if rc.enabled and views and any(v.handles is not None for v in views):
+        detected = [np.array([v.stem in {st for st, _ in s.matched} for v in views]) for s, _, _ in fits]
+        _, cells, rates = rectify_fronts(fronts, views, rc, detected)
+        image_cells = (cells, rates, 1.5 * rc.res, rc.min_cells)
     handles, gave_up = front_handles(fronts, mesh_pts, pt_normal, np.asarray(mesh.triangles_center), edge,
                                      cfg.handles, cfg.types.edge_frac,
-                                     max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views)
+                                     max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views,
+                                     image_cells)
     seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
     partner = sliding_partners(fronts, handles, cfg.joints, seg_pts)
     floor_z = float(np.percentile(np.asarray(mesh.vertices)[:, 2], 1.0)) if len(mesh.vertices) else 0.0
@@ -112,7 +129,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = decide_by_handle(h, s.labels, cfg.types)
         reason = dec.reason + "".join(f"; the pull it shared with segment {fits[hi][0].id} went there"
                                       for lo, hi in gave_up if lo == k)
-        row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason,
+        low = dec.margin is not None and dec.margin < cfg.types.low_margin
+        row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason, "low_margin": low,
                "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size],
                "front": fr.to_json(), **info, **terms}
         report.append(row)
@@ -121,6 +139,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         pid = f"{dec.family}_{counts.get(dec.family, 0)}"
         counts[dec.family] = counts.get(dec.family, 0) + 1
         extra = {"family": dec.family, "segment": s.id}
+        if dec.confidence is not None:
+            extra |= {"confidence": round(dec.confidence, 4), "margin": round(dec.margin, 4), "low_margin": low}
         pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         side = (slide_side(fr, mesh_pts, h, cfg.joints, rail_run(fr, mesh_pts, pt_normal))
                 if dec.family == "sliding" and pair is None else None)

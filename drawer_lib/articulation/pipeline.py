@@ -7,12 +7,13 @@ import numpy as np
 
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.estimators import get_estimator
+from drawer_lib.articulation.rectify import View
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import PartsFile, write_parts
-from drawer_lib.perception.decompose import Segment
+from drawer_lib.perception.decompose import HANDLE_LABELS, Segment
 from drawer_lib.perception.pipeline import load_segments
 from drawer_lib.runner import StageRun
 
@@ -36,6 +37,27 @@ def mask_source(cap: Capture):
     return masks_of
 
 
+def train_views(cap: Capture, mesh, with_images: bool = False) -> list[View]:
+    """The train views for :mod:`~drawer_lib.articulation.rectify`: camera, the depth of
+    ``mesh`` ray-cast from it, the union of its "handle" masks (None without detections) and,
+    with ``with_images``, its image."""
+    from drawer_lib.geometry.raycast import Raycaster
+
+    rc = Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    dets = cap.has("detections_path")
+    views = []
+    for i in cap.train:
+        cam = cap.camera(i)
+        depth, _, _ = rc.depth_normals(cap.intrinsics, cam.w2c)
+        hmask = None
+        if dets:
+            lab, rows = cap.detections(i)
+            ids = [int(d["id"]) for d in rows if str(d.get("label", "")).strip().lower() in HANDLE_LABELS]
+            hmask = np.isin(lab, ids) if ids else np.zeros(lab.shape, bool)
+        views.append(View(cam, depth, hmask, cap.image(i) if with_images else None, cap.frames[i].stem))
+    return views
+
+
 def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: StageRun,
                    weights: dict[str, dict[str, float]] | None = None) -> dict:
     """Infer the parts of the segments in ``seg_dir`` (a decompose output) and write them;
@@ -48,8 +70,9 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
                          "view_rate needs (written by an older decompose: re-run it)")
     centers = np.stack([cap.frames[i].c2w[:3, 3] for i in cap.train])
     masks_of = mask_source(cap) if cap.has("detections_path") else None
+    views = train_views(cap, mesh) if cfg.rectify.enabled and cap.has("detections_path") else None
     parts, report = est(mesh, segs, centers, cfg, handle_hits=hits, masks_of=masks_of, face_views=face_views,
-                        weights=weights)
+                        weights=weights, views=views)
     pf = PartsFile(tuple(parts))
     write_parts(run.out("parts"), pf)
     write_json(run.out("decisions"), {"estimator": cfg.estimator, "segments": report})

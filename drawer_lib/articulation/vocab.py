@@ -86,8 +86,12 @@ class Handle:
 @dataclass(frozen=True)
 class Decision:
     """A front's type: ``family`` (drawer | door | flap | sliding | fixed), the ``hinge`` edge of
-    a revolute one (left | right | top | bottom) and the ``reason`` for ``decisions.json``."""
+    a revolute one (left | right | top | bottom), the ``reason`` for ``decisions.json`` and, from
+    the score rule, the ``margin`` over the runner-up (log-odds) and the ``confidence`` (the
+    chosen hypothesis' probability); None from a rule without scores."""
 
     family: str
     hinge: str | None = None
     reason: str = ""
+    margin: float | None = None
+    confidence: float | None = None

@@ -21,7 +21,9 @@ from drawer_lib.io.capture import load_capture
 from drawer_lib.io.atomic import atomic_write_text
 from drawer_lib.io.images import read_json, write_json
 from drawer_lib.io.parts import read_parts
-from drawer_lib.metrics.articulation import articulation_metrics
+from drawer_lib.io.parts import Part
+from drawer_lib.metrics.articulation import articulation_metrics, hinge_side, match_parts
+from drawer_lib.metrics.motion import kinematic_motion_emd
 from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths, bench_name, capture_name
 from drawer_lib.report.markdown import md_table
 from drawer_lib.runner import StageRun, stage_run
@@ -30,13 +32,38 @@ WEIGHT_SOURCES = ("fitted", "prior")
 COUNT_KEYS = ("n_pred", "n_gt", "n_correct", "n_ignored")
 
 
+def part_label(p: Part | None) -> str:
+    """A part's kind for the confusion matrix: its family (``door``, ``drawer``, ...) with the
+    hinge side of a door or flap (``door_left``, ``flap_top``); ``missed`` for None."""
+    if p is None:
+        return "missed"
+    fam = str(p.extra.get("family", p.kind))
+    hinge = hinge_side(p) if fam in ("door", "flap") else None  # from the axis: GT and prediction alike
+    return f"{fam}_{hinge}" if hinge else fam
+
+
 def score_kitchen(kitchen: ScenePaths, parts_path: Path) -> dict:
     """Precision, recall, EA-score and counts of the parts at ``parts_path`` against the
-    kitchen's ground truth, plus the EA-score of every correct revolute part (``eas``)."""
+    kitchen's ground truth, plus the EA-score of every correct revolute part (``eas``), the
+    motion EMD of every correct pair with the prediction moved by its own joint in the first test
+    view (``emds``; :func:`~drawer_lib.metrics.motion.kinematic_motion_emd`) and the
+    (GT kind, predicted kind) of every GT part and every unmatched prediction outside the
+    ignore boxes (``confusion``: :func:`part_label`, ``none`` for no GT part)."""
     cap = load_capture(kitchen.capture, check_files=False)
     gt = read_parts(kitchen.capture / capture_name("gt_parts"))
-    res, details = articulation_metrics(read_parts(parts_path), gt, cap.cameras(cap.test))
+    pred = read_parts(parts_path)
+    views = cap.cameras(cap.test)
+    res, details = articulation_metrics(pred, gt, views)
     res["eas"] = [d["ea_score"] for d in details if d.get("ea_score") is not None]
+    m = match_parts(pred, gt)
+    pairs = [(i, j) for i, j, _ in m.correct]
+    _, emd_rows = kinematic_motion_emd(m.pred, m.gt, pairs, views[0]) if views else ({}, [])
+    res["emds"] = [r["emd"] for r in emd_rows if r["emd"] is not None]
+    by_gt = {j: i for i, j, _ in m.pairs}
+    matched = set(by_gt.values()) | set(m.ignored)
+    res["confusion"] = ([[part_label(g), part_label(m.pred[by_gt[j]] if j in by_gt else None)]
+                         for j, g in enumerate(m.gt)]
+                        + [["none", part_label(p)] for i, p in enumerate(m.pred) if i not in matched])
     return res
 
 
@@ -88,7 +115,25 @@ def summarise(rows: Sequence[dict], source: str) -> dict:
     out["n_revolute_scored"] = len(eas)
     if eas:
         out["ea_score"] = float(np.mean(eas))
+    emds = [e for p in per for e in p.get("emds", [])]
+    out["n_emd"] = len(emds)
+    if emds:
+        k_means = [float(np.mean(p["emds"])) for p in per if p.get("emds")]
+        out["emd"], out["emd_mean"], out["emd_worst"] = float(np.mean(emds)), float(np.mean(k_means)), max(k_means)
     return out
+
+
+def confusion_matrix(rows: Sequence[dict], source: str) -> tuple[list[str], list[str], np.ndarray]:
+    """(GT kinds, predicted kinds, counts [G, P]) of the split's parts for weight ``source``
+    (:func:`score_kitchen`'s ``confusion``), kinds sorted, ``missed`` and ``none`` last."""
+    pairs = [tuple(c) for r in rows for c in r[source].get("confusion", [])]
+    last = lambda k: (k in ("missed", "none"), k)  # noqa: E731
+    g_kinds = sorted({g for g, _ in pairs}, key=last)
+    p_kinds = sorted({p for _, p in pairs}, key=last)
+    counts = np.zeros((len(g_kinds), len(p_kinds)), np.int64)
+    for g, p in pairs:
+        counts[g_kinds.index(g), p_kinds.index(p)] += 1
+    return g_kinds, p_kinds, counts
 
 
 def split_metrics(rows: Sequence[dict]) -> dict:
@@ -97,7 +142,7 @@ def split_metrics(rows: Sequence[dict]) -> dict:
     prefixed by it (``fitted_recall_worst``, ``prior_precision``, ...), and the geometry's mean
     and worst kitchen."""
     s = {src: summarise(rows, src) for src in WEIGHT_SOURCES}
-    out = {k: s["fitted"][k] for k in ("precision", "recall", "ea_score") if k in s["fitted"]}
+    out = {k: s["fitted"][k] for k in ("precision", "recall", "ea_score", "emd") if k in s["fitted"]}
     for src in WEIGHT_SOURCES:
         out.update({f"{src}_{k}": v for k, v in s[src].items()})
     for key in GEOMETRY_KEYS:
@@ -116,7 +161,7 @@ def split_table(split: str, rows: Sequence[dict]) -> str:
     """The split's markdown: both weight sources side by side, then every kitchen."""
     head = ["weights", "kitchens", "precision pooled (correct / predicted)", "recall pooled (correct / GT)",
             "EA pooled (revolute parts)", "precision per kitchen: mean ± sd / worst", "recall: mean ± sd / worst",
-            "EA: mean ± sd / worst"]
+            "EA: mean ± sd / worst", "motion EMD pooled / worst kitchen"]
     body = []
     for src in WEIGHT_SOURCES:
         s = summarise(rows, src)
@@ -129,14 +174,19 @@ def split_table(split: str, rows: Sequence[dict]) -> str:
         body.append([src, s["n_kitchens"], f"{_fmt(s.get('precision'))} ({s['n_correct']} / {scored})",
                      f"{_fmt(s.get('recall'))} ({s['n_correct']} / {s['n_gt']})",
                      f"{_fmt(s.get('ea_score'), '.4f')} (n = {s['n_revolute_scored']})", per("precision"),
-                     per("recall"), per("ea_score")])
+                     per("recall"), per("ea_score"),
+                     f"{_fmt(s.get('emd'), '.2e')} / {_fmt(s.get('emd_worst'), '.2e')} (n = {s['n_emd']})"])
     kitchens = [[r["kitchen"], r["fitted"]["n_gt"], *(f"{_fmt(r[src].get('precision'))} / {_fmt(r[src].get('recall'))}"
                                                       f" / {_fmt(r[src].get('ea_score'), '.3f')}" for src in WEIGHT_SOURCES),
                  _fmt(1000 * r["chamfer_l1"], ".2f") if "chamfer_l1" in r else "–", _fmt(r.get("fscore_2cm"))]
                 for r in rows]
+    g_kinds, p_kinds, counts = confusion_matrix(rows, "fitted")
+    conf = md_table(["GT \\ predicted", *p_kinds], [[g, *c.tolist()] for g, c in zip(g_kinds, counts)])
     return (f"## The {split} split\n\n" + md_table(head, body) + "\n"
             + md_table(["kitchen", "GT parts", "fitted P / R / EA", "prior P / R / EA", "mesh Chamfer-L1 (mm)",
-                        "F@2cm"], kitchens))
+                        "F@2cm"], kitchens)
+            + "\nKinds, fitted weights (rows: ground truth, `none` a prediction that matches no GT part; "
+              "columns: prediction, `missed` no prediction):\n\n" + conf)
 
 
 def run_eval(split: str, kitchens: Sequence[int], bench: BenchPaths, cfg: ArticulateConfig,

@@ -114,6 +114,22 @@ def match_parts(pred: PartsFile, gt: PartsFile) -> Matching:
     return Matching(pairs, P, G, ignored)
 
 
+def hinge_side(part: Part) -> str | None:
+    """The edge of a revolute part's front its axis runs along (``left``, ``right``, ``top``,
+    ``bottom``: left / right along the front's u, bottom / top along v), from the axis alone;
+    None for another kind or an axis along the normal."""
+    if part.kind != "revolute" or part.front is None or part.axis is None:
+        return None
+    f = part.front
+    d, rel = np.asarray(part.axis.direction), np.asarray(part.axis.origin) - np.asarray(f.center)
+    along_u, along_v = abs(d @ np.asarray(f.u)), abs(d @ f.v)
+    if max(along_u, along_v) < 0.5:
+        return None
+    if along_v >= along_u:  # a vertical hinge line: left or right edge
+        return "left" if rel @ np.asarray(f.u) < 0 else "right"
+    return "bottom" if rel @ f.v < 0 else "top"
+
+
 def axis_segment(part: Part) -> np.ndarray:
     """[2, 3] the stretch of a part's axis line that spans its front."""
     o, d = np.asarray(part.axis.origin), np.asarray(part.axis.direction)

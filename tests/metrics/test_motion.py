@@ -11,7 +11,8 @@ import pytest
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.io.parts import Axis, Front, Part
-from drawer_lib.metrics.motion import (STEPS, front_grid, interpolate_tracks, kinematic_tracks, motion_emd,
+from drawer_lib.metrics.motion import (STEPS, front_grid, interpolate_tracks, kinematic_motion_emd, kinematic_tracks,
+                                       motion_emd,
                                        opening_amount, step_values, track_emd)
 
 W, H, F = 200, 150, 160.0
@@ -87,3 +88,16 @@ def test_tracks_behind_the_camera_are_not_scored():
     part = Part("d", "prismatic", Axis((0.0, 0.0, -1.0), (1.0, 0.0, 0.0)), (0.0, 0.3), behind)
     summary, rows = motion_emd([part], [part], [(0, 0)], _recorded(part), CAM)
     assert summary == {} and "behind the camera" in rows[0]["skipped"]
+
+
+def test_kinematic_emd_matches_a_perfect_simulation():
+    """The benchmark's EMD (prediction moved by its own joint) equals the simulated one when the
+    simulation follows the joint exactly; a door hinged on the wrong side scores far worse."""
+    gt, right = _door(), _door(origin_x=0.25)
+    wrong = Part("door_1", "revolute", Axis((0.25, 0.0, Z), (0.0, -1.0, 0.0)), gt.limits, FRONT)
+    sim, _ = motion_emd([wrong], [gt], [(0, 0)], _recorded(wrong), CAM)
+    kin, _ = kinematic_motion_emd([wrong], [gt], [(0, 0)], CAM)
+    assert kin["emd"] == pytest.approx(sim["emd"], rel=1e-6) and kin["emd"] > 1e-3
+    same, _ = kinematic_motion_emd([gt], [gt], [(0, 0)], CAM)
+    assert same["emd"] < 1e-12
+    assert right.axis.origin[0] > 0  # the mirrored axis used above

@@ -1,0 +1,100 @@
+"""Fronts rectified from every view: the handle map against an analytic scene (a front in the
+plane y = 0 facing -y, a handle 2 cm proud of it, cameras on an arc), occlusion, the views a
+front was detected in, and the margin / confidence of a decision."""
+
+import numpy as np
+import pytest
+
+from drawer_lib.articulation.config import RectifyConfig
+from drawer_lib.articulation.decide import margin_confidence
+from drawer_lib.articulation.handles import handle_candidates, describe_handle
+from drawer_lib.articulation.config import HandlesConfig
+from drawer_lib.articulation.rectify import View, front_grid, rectify_front, rectify_fronts
+from drawer_lib.errors import ConfigError
+from drawer_lib.geometry.camera import Camera, Intrinsics, invert_rigid, look_at_opencv, pixel_of
+from drawer_lib.io.parts import Front
+
+FRONT = Front((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.4))  # v = n x u = +z
+HANDLE_C = np.array([0.2, -0.02, 1.12])  # a_u = (0.2 + 0.3) / 0.6, a_v = (0.12 + 0.2) / 0.4
+HANDLE_HALF = np.array([0.01, 0.0, 0.06])  # a vertical bar 2 x 12 cm
+
+
+def _views(n: int = 8, handle_in: set[int] | None = None, occluder_depth: float | None = None) -> list[View]:
+    it = Intrinsics(500.0, 500.0, 160.0, 120.0, 320, 240)
+    views = []
+    for t, ang in enumerate(np.linspace(-0.6, 0.6, n)):
+        eye = np.array([1.2 * np.sin(ang), -1.2 * np.cos(ang), 1.1])
+        cam = Camera(it, invert_rigid(look_at_opencv(eye, np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0]))))
+        o, d = cam.rays()
+        # the plane y = 0 hit along every ray: the reconstructed surface is the front's plane
+        tz = -o[..., 1] / np.where(np.abs(d[..., 1]) > 1e-9, d[..., 1], 1e-9)
+        depth = np.where(tz > 0, tz, 0.0).astype(np.float32)
+        if occluder_depth is not None:
+            depth = np.minimum(depth, occluder_depth).astype(np.float32)
+        # the handle's mask: its box (2 cm proud) sampled densely and projected
+        g = np.stack(np.meshgrid(*(np.linspace(-1, 1, 61),) * 3, indexing="ij"), -1).reshape(-1, 3)
+        pts = HANDLE_C + g * (HANDLE_HALF + np.array([0.0, 0.01, 0.0]))
+        r, c, _, ok = pixel_of(pts, cam.w2c, it)
+        mask = np.zeros((it.height, it.width), bool)
+        if handle_in is None or t in handle_in:
+            mask[r[ok], c[ok]] = True
+        views.append(View(cam, depth, mask, None, f"f{t}"))
+    return views
+
+
+def test_handle_found_where_it_is():
+    cfg = RectifyConfig()
+    rf = rectify_front(FRONT, _views(), cfg)
+    u0, v0, gu, gv = front_grid(FRONT, cfg.res, cfg.margin)
+    assert rf.shape == (gv, gu) and (rf.seen.max() == 8)
+    _, pts, rates = rectify_fronts([FRONT], _views(), cfg)
+    cands = handle_candidates([FRONT], pts, HandlesConfig(), 1.5 * cfg.res, cfg.min_cells, weights=rates)
+    assert len(cands[0]) == 1
+    h = describe_handle(FRONT, cands[0][0][0], "images", HandlesConfig())
+    assert h.a_u == pytest.approx(0.5 / 0.6, abs=0.02) and h.a_v == pytest.approx(0.32 / 0.4, abs=0.03)
+    assert h.orientation == "vertical"
+
+
+def test_occluded_views_do_not_count():
+    cfg = RectifyConfig()
+    rf = rectify_front(FRONT, _views(occluder_depth=0.5), cfg)  # a surface 0.5 m from every camera
+    assert rf.seen.max() == 0 and rf.handle_rate(cfg.min_views).max() == 0
+
+
+def test_a_front_seen_in_few_views_keeps_its_handle():
+    cfg = RectifyConfig()
+    views = _views(n=12, handle_in={0, 5, 9})  # the detector held the front (and its handle) in 3 of 12 views
+    everywhere = rectify_front(FRONT, views, cfg).handle_rate(cfg.min_views).max()
+    detected = np.zeros(12, bool)
+    detected[[0, 5, 9]] = True
+    where_detected = rectify_front(FRONT, views, cfg, detected).handle_rate(cfg.min_views).max()
+    assert everywhere < cfg.min_rate <= where_detected
+    detected[:] = False
+    detected[0] = True  # fewer than min_views detected views: all views count
+    assert rectify_front(FRONT, views, cfg, detected).handle_rate(cfg.min_views).max() == pytest.approx(everywhere)
+
+
+def test_no_handle_masks_no_points():
+    cfg = RectifyConfig()
+    _, pts, rates = rectify_fronts([FRONT], _views(handle_in=set()), cfg)
+    assert pts.shape == (0, 3) and rates.shape == (0,)
+
+
+@pytest.mark.parametrize("bad", [{"res": 0.0}, {"max_angle_deg": 90.0}, {"min_rate": 0.0}, {"margin": -0.01}])
+def test_config_checked(bad):
+    with pytest.raises(ConfigError, match="articulate.rectify"):
+        RectifyConfig(**bad)
+
+
+def test_margin_and_confidence():
+    scores = {"drawer": 2.0, "door_left": 1.0, "door_right": 1.0, "flap_top": -1.0, "flap_bottom": -1.0,
+              "sliding": -3.0, "fixed": 0.0}
+    ru, m, c = margin_confidence(scores, "drawer")
+    assert ru == "door_left" and m == pytest.approx(1.0)
+    s = np.array(list(scores.values()))
+    assert c == pytest.approx(np.exp(2.0) / np.exp(s).sum())
+    tie = scores | {"door_left": 3.0, "door_right": 3.0}  # two hinge sides alike: margin 0
+    ru, m, c = margin_confidence(tie, "door_left")
+    assert ru == "door_right" and m == 0.0 and c < 0.5
+    big = {k: v * 1e3 for k, v in scores.items()}  # no overflow with huge scores
+    assert margin_confidence(big, "drawer")[2] == pytest.approx(1.0)
