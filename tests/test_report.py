@@ -73,6 +73,15 @@ def outputs(tmp_path_factory):
            {"points": [asdict(p) for p in pts], "config": {"budgets_s": [120.0, 600.0]},
             "fronts": {f: [asdict(p) for p in pareto_front([q for q in pts if q.family == f], LOWER_IS_BETTER[f])]
                        for f in LOWER_IS_BETTER}})
+    _write(sp.file("articulate", "decisions"), {"estimator": "geometric", "segments": [
+        {"segment": 1, "family": "flap", "hinge": "bottom", "part": "flap_0", "runner_up": "drawer", "margin": 0.59,
+         "confidence": 0.63, "low_margin": True,
+         "handle": {"a_u": 0.49, "a_v": 0.9, "orientation": "horizontal", "n_points": 9, "source": "images"}},
+        {"segment": 2, "family": "drawer", "hinge": None, "part": "drawer_0", "runner_up": "flap_bottom",
+         "margin": 4.1, "confidence": 0.98, "low_margin": False, "handle": None},
+        {"segment": 3, "family": "fixed", "hinge": None, "runner_up": "drawer", "margin": 0.2, "confidence": 0.4,
+         "low_margin": True, "handle": None},
+        {"segment": 4, "family": "rigid", "reason": "not planar"}]})
     extremes = [{"extreme": "SDF density at β = 1e-5", "expect": "finite", "test": ROWS[0][2], "outcome": "passed",
                  "seconds": 0.01, "message": None}]
     data = collect(out, reports, [SCENE, "never_ran"], [], ["static_gs"], extremes)
@@ -105,6 +114,12 @@ def test_render_has_every_section_and_the_paper_columns(outputs):
     assert "| geometry | 10 min | neural 1300 steps, 15 mm | 300.0 | 3.5 Chamfer-L1 (mm) |" in md
     assert "never_ran: no swept grid" in md
     assert "http://" not in page and "https://" not in page and "<script" not in page  # nothing to fetch
+    # the low-margin decisions, lowest first, a fixed front among them; the confident one not listed
+    assert "Low-margin decisions: 2 of 3 typed fronts" in md
+    lines = md.splitlines()
+    fixed = lines.index("| tiny | 3 | – (fixed) | fixed | drawer | 0.20 | 0.40 | none |")
+    assert lines[fixed + 1] == "| tiny | 1 | flap_0 | flap (bottom) | drawer | 0.59 | 0.63 | horizontal at (0.49, 0.90) |"
+    assert "| tiny | 2 | drawer_0 |" not in md
 
 
 def test_junit_parsing_and_a_stale_test_id(tmp_path):

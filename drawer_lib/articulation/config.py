@@ -103,7 +103,12 @@ class RectifyConfig:
     ``max_angle_deg`` and the ray-cast surface is not nearer than the cell by more than
     ``occlusion_tol`` (m, + 2 % of the depth); the handle map samples ``handle_offset`` (m) in
     front of the plane. A handle cell is seen in at least ``min_views`` views and covered in at
-    least ``min_rate`` of them; a handle is at least ``min_cells`` such cells linked at 1.5 cells."""
+    least ``min_rate`` of them; a handle is at least ``min_cells`` such cells linked at 1.5 cells.
+    ``colour_handles``: a front whose masks show no handle takes one read off its rectified
+    colours (:func:`~drawer_lib.articulation.handles.colour_handle`: cells ``colour_edge_band``
+    m inside the rectangle farther from the front's median colour than max(``colour_contrast``,
+    ``colour_texture_k`` x the median distance), a bar or knob ``colour_min_len`` ..
+    ``colour_max_len`` m long and at most ``colour_max_width`` m wide)."""
 
     enabled: bool = True
     res: float = 0.004
@@ -114,6 +119,13 @@ class RectifyConfig:
     min_views: int = 3
     min_rate: float = 0.3
     min_cells: int = 8
+    colour_handles: bool = True
+    colour_edge_band: float = 0.015
+    colour_contrast: float = 0.12
+    colour_texture_k: float = 4.0
+    colour_min_len: float = 0.015
+    colour_max_len: float = 0.45
+    colour_max_width: float = 0.05
 
     def __post_init__(self):
         if not 0 < self.res <= 0.05:
@@ -124,6 +136,40 @@ class RectifyConfig:
             raise ConfigError(f"articulate.rectify.max_angle_deg = {self.max_angle_deg} must be in (0, 90)")
         if not 0 < self.min_rate <= 1 or self.min_views < 1 or self.min_cells < 1:
             raise ConfigError("articulate.rectify: need 0 < min_rate <= 1, min_views >= 1, min_cells >= 1")
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """Fronts cut at their gap lines (:mod:`drawer_lib.articulation.gaps`; needs ``rectify`` and
+    the images): ``enabled``; a strong boundary cell lies between two instance masks in at least
+    ``boundary_rate`` of the views that saw it (a weak one in ``boundary_rate_handles``), give
+    or take ``slack`` cells; an image line cell
+    differs from the mean of the cells ``step`` away on either side by more than max(``contrast``,
+    ``texture_k`` x the front's median such difference); a cut's strong boundary cells cover
+    ``coverage`` of each third of the piece's span (with handles on both sides, its weak
+    boundary or image line cells ``coverage_handles``), at least ``min_piece`` (m) from its edges, crossing no handle; at
+    most ``max_depth`` cuts deep."""
+
+    enabled: bool = True
+    boundary_rate: float = 0.1
+    boundary_rate_handles: float = 0.05
+    slack: int = 2
+    step: int = 2
+    contrast: float = 0.02
+    texture_k: float = 4.0
+    coverage: float = 0.6
+    coverage_handles: float = 0.35
+    min_piece: float = 0.1
+    max_depth: int = 6
+
+    def __post_init__(self):
+        if self.step < 1 or self.max_depth < 0 or self.slack < 0:
+            raise ConfigError("articulate.split: need step >= 1, slack >= 0 and max_depth >= 0")
+        if not 0 < self.boundary_rate_handles <= self.boundary_rate <= 1:
+            raise ConfigError("articulate.split: need 0 < boundary_rate_handles <= boundary_rate <= 1")
+        if not 0 < self.coverage_handles <= self.coverage <= 1 or self.contrast < 0 or self.texture_k < 0 or not self.min_piece > 0:
+            raise ConfigError("articulate.split: need 0 < coverage_handles <= coverage <= 1, contrast >= 0, "
+                              "texture_k >= 0, min_piece > 0")
 
 
 @dataclass(frozen=True)
@@ -144,13 +190,16 @@ class TypesConfig:
     views, in a carcass, is rarely fixed even when its handle is too small to find); a front with
     a handle or enough support is typed. A score decision whose margin over the runner-up is
     below ``low_margin`` (log-odds) is marked ``low_margin`` in ``decisions.json`` and
-    ``parts.json``, listed by the report and marked in the viewer."""
+    ``parts.json``, listed by the report and marked in the viewer. ``sliding_needs_track``: the
+    score rule types a front sliding only when it has a partner on another track or a track
+    along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`)."""
 
     rule: str = "score"
     weights: str = "fitted"
     prior: dict[str, dict[str, float]] = field(default_factory=prior_weights)
     min_support: int = 5
     low_margin: float = 1.0
+    sliding_needs_track: bool = True
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
@@ -226,5 +275,6 @@ class ArticulateConfig:
     fronts: FrontsConfig = field(default_factory=FrontsConfig)
     handles: HandlesConfig = field(default_factory=HandlesConfig)
     rectify: RectifyConfig = field(default_factory=RectifyConfig)
+    split: SplitConfig = field(default_factory=SplitConfig)
     types: TypesConfig = field(default_factory=TypesConfig)
     joints: JointsConfig = field(default_factory=JointsConfig)

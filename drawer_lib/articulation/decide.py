@@ -50,18 +50,32 @@ def decide_by_handle(h: Handle | None, labels: dict, cfg: TypesConfig) -> Decisi
 def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str, float]]) -> tuple[Decision, dict]:
     """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
     for ``decisions.json`` (features, door features per hinge side, scores, the runner-up, the
-    margin and the confidence: :func:`margin_confidence`)."""
+    margin and the confidence over the hypotheses its evidence allows: :func:`margin_confidence`,
+    :func:`missing_evidence`; ``excluded``: the others and why)."""
     common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels)
     door = {side: door_features(ev, side) for side in ("left", "right")}
-    scores = score(common, door, weights)
+    all_scores = score(common, door, weights)
+    unseen = missing_evidence(common, cfg)
+    scores = {k: v for k, v in all_scores.items() if k not in unseen}
     best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
     runner_up, margin, conf = margin_confidence(scores, best)
     fam, _, hinge = best.partition("_")
     dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up} {scores[runner_up]:.2f})",
                    margin=margin, confidence=conf)
     r4 = lambda d: {k: round(float(v), 4) for k, v in d.items()}  # noqa: E731
-    return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()}, "scores": r4(scores),
-                 "runner_up": runner_up, "margin": round(margin, 4), "confidence": round(conf, 4)}
+    return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()},
+                 "scores": r4(all_scores), "excluded": unseen, "runner_up": runner_up, "margin": round(margin, 4),
+                 "confidence": round(conf, 4)}
+
+
+def missing_evidence(common: dict[str, float], cfg: TypesConfig) -> dict[str, str]:
+    """The hypotheses whose defining evidence the front lacks, with why: with
+    ``cfg.sliding_needs_track``, a sliding door needs a partner panel on another track or a
+    track along its top or bottom edge (a high front with side neighbours is not one)."""
+    out = {}
+    if cfg.sliding_needs_track and common["partner"] <= 0 and common["rail"] <= 0:
+        out["sliding"] = "no partner on another track and no track along an edge"
+    return out
 
 
 def margin_confidence(scores: dict[str, float], best: str) -> tuple[str, float, float]:

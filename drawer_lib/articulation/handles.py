@@ -5,6 +5,8 @@ and shape in the front's unit square. Lengths in metres."""
 import numpy as np
 from jaxtyping import Float
 
+from typing import TYPE_CHECKING
+
 from drawer_lib.articulation.config import HandlesConfig
 from drawer_lib.articulation.fronts import abutting_edges
 from drawer_lib.articulation.vocab import Handle
@@ -12,6 +14,10 @@ from drawer_lib.errors import InputError
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front
 from drawer_lib.perception.views import connected_components
+
+if TYPE_CHECKING:
+    from drawer_lib.articulation.config import RectifyConfig
+    from drawer_lib.articulation.rectify import RectifiedFront
 
 Candidates = list[list[tuple[np.ndarray, float]]]  # per front: [(points [M, 3], weight)], heaviest first
 
@@ -123,6 +129,49 @@ def resolve_stacked_pulls(fronts: list[Front], cands: Candidates, edge_frac: flo
     return [cands[k][choice[k]][0] if choice[k] >= 0 else None for k in range(len(fronts))], changed
 
 
+def colour_handle(front: Front, rf: "RectifiedFront", cfg: "RectifyConfig") -> np.ndarray | None:
+    """A handle the detector never found, read off the rectified front's colours: the cells
+    (seen in >= ``min_views`` views, at least ``colour_edge_band`` m inside the rectangle: gaps
+    and neighbours bleed into its border) whose colour lies farther from the front's median
+    colour than max(``colour_contrast``, ``colour_texture_k`` x the median such distance), in
+    4-connected blobs; a blob is a handle when it is a bar or a knob: its longer side
+    ``colour_min_len`` .. ``colour_max_len`` m, its shorter at most ``colour_max_width`` m, and
+    it fills half of its box. The biggest such blob, as points on the front's plane [M, 3], or
+    None. Colours in [0, 1]."""
+    from scipy import ndimage
+
+    from drawer_lib.articulation.rectify import grid_points
+
+    uu, vv = rf.uv()
+    w, h = front.size
+    band = cfg.colour_edge_band
+    inside = (np.abs(uu) <= w / 2 - band) & (np.abs(vv) <= h / 2 - band) & (rf.seen >= cfg.min_views)
+    inside &= np.isfinite(rf.rgb).all(axis=2)
+    if inside.sum() < 10:
+        return None
+    panel = np.median(rf.rgb[inside], axis=0)
+    dist = np.where(inside, np.linalg.norm(np.nan_to_num(rf.rgb) - panel, axis=2), 0.0)
+    thr = max(cfg.colour_contrast, cfg.colour_texture_k * float(np.median(dist[inside])))
+    lab, n = ndimage.label(dist > thr)
+    best, best_n = None, 0
+    for k, sl in enumerate(ndimage.find_objects(lab), start=1):
+        if sl is None:
+            continue
+        cells = lab[sl] == k
+        ext_v, ext_u = cells.shape[0] * rf.res, cells.shape[1] * rf.res
+        long_, short = max(ext_u, ext_v), min(ext_u, ext_v)
+        n_cells = int(cells.sum())
+        if not (cfg.colour_min_len <= long_ <= cfg.colour_max_len and short <= cfg.colour_max_width):
+            continue
+        if n_cells < max(cfg.min_cells, 0.5 * cells.size) or n_cells <= best_n:
+            continue
+        best, best_n = (sl, cells), n_cells
+    if best is None:
+        return None
+    sl, cells = best
+    return grid_points(front, uu[sl][cells], vv[sl][cells])
+
+
 def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: HandlesConfig) -> Handle | None:
     """The handle's place (median of its points [M, 3] in the front's unit square) and shape
     (``extent_percentile`` extents: round when the longer is below ``round_aspect`` x the
@@ -165,8 +214,8 @@ def protrusions(front: Front, mesh_points: Float[np.ndarray, "P 3"], normals: Fl
 def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarray, face_centers: np.ndarray,
                   edge_length: float, cfg: HandlesConfig, edge_frac: float, stack_gap: float,
                   handle_hits: np.ndarray | None = None, face_views: np.ndarray | None = None,
-                  image_cells: tuple[np.ndarray, np.ndarray, float, int] | None = None
-                  ) -> tuple[list[Handle | None], list[tuple[int, int]]]:
+                  image_cells: tuple[np.ndarray, np.ndarray, float, int] | None = None,
+                  colour: list[np.ndarray | None] | None = None) -> tuple[list[Handle | None], list[tuple[int, int]]]:
     """Each front's handle (or None) from both kinds of evidence, the masks' first; and the
     stacked pulls resolved (:func:`resolve_stacked_pulls`, when ``cfg.stacked_pulls``).
     ``mesh_pts`` / ``pt_normal`` [P, 3]: points sampled on the mesh and their normals;
@@ -175,7 +224,9 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
     fronts (:func:`~drawer_lib.articulation.rectify.rectify_fronts`; source ``images``), else
     the mesh faces they cover: ``handle_hits`` [F], in how many views a "handle" mask covers
     each face, and ``face_views`` [F], in how many views each face is visible (needed by
-    ``evidence: view_rate``; source ``masks``)."""
+    ``evidence: view_rate``; source ``masks``). ``colour[k]``: front k's handle read off its
+    rectified colours (:func:`colour_handle`; source ``colour``), taken when the masks show none,
+    before the mesh's protrusions."""
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
     by_geo = heaviest(handle_candidates(fronts, geo_pts, cfg, cfg.geo_radius, cfg.geo_min_points))
@@ -191,8 +242,11 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
                                                  cfg.stacked_min_overlap)
     else:
         by_mask, gave_up = heaviest(mask_cands), []
-    handles = [describe_handle(f, m, source, cfg) if m is not None else describe_handle(f, g, "geometry", cfg)
-               for f, g, m in zip(fronts, by_geo, by_mask)]
+    by_colour = colour if colour is not None else [None] * len(fronts)
+    handles = [describe_handle(f, m, source, cfg) if m is not None
+               else describe_handle(f, c, "colour", cfg) if c is not None
+               else describe_handle(f, g, "geometry", cfg)
+               for f, g, m, c in zip(fronts, by_geo, by_mask, by_colour)]
     return handles, gave_up
 
 

@@ -21,10 +21,11 @@ from drawer_lib.articulation.fronts import (
     sample_points,
     share_edges,
 )
-from drawer_lib.articulation.handles import front_handles
+from drawer_lib.articulation.handles import colour_handle, front_handles
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
 from drawer_lib.articulation.probes import carcass_depth, rail_extent, rail_run
-from drawer_lib.articulation.rectify import View, rectify_fronts
+from drawer_lib.articulation.gaps import split_front
+from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts
 from drawer_lib.articulation.scoring import Evidence
 from drawer_lib.articulation.vocab import Decision
 from drawer_lib.geometry.frames import UP
@@ -40,11 +41,14 @@ def rigid_part(seg: Segment, mesh: trimesh.Trimesh, k: int) -> Part:
 
 
 def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,
-                   masks_of: Callable | None, parts: list[Part], report: list[dict]
-                   ) -> list[tuple[Segment, Front, dict]]:
+                   masks_of: Callable | None, parts: list[Part], report: list[dict],
+                   views: list[View] | None = None) -> list[tuple[Segment, Front, dict]]:
     """The front of every planar, vertical segment of a plausible size (shared edges applied);
     non-planar segments are appended to ``parts`` as rigid parts, and every segment that gives
-    no front to ``report`` with the reason."""
+    no front to ``report`` with the reason. With ``cfg.split.enabled`` and ``views`` with
+    images, a segment's rectangle is first cut at the gap lines of its rectified image
+    (:func:`~drawer_lib.articulation.gaps.split_front`): a segment over several fronts (masks
+    merged in most views) gives each of them, its info ``piece`` k ``of`` n."""
     fc = cfg.fronts
     sin_v = np.sin(np.deg2rad(fc.vertical_deg))
     fits: list[tuple[Segment, Front, dict]] = []
@@ -63,11 +67,18 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
         front, used = fitted, 0
         if masks_of is not None:
             front, used = refine_with_masks(fitted, masks_of(s), fc)
-        w, h = front.size
-        if min(w, h) < fc.min_size or max(w, h) > fc.max_size:
-            report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
-            continue
-        fits.append((s, front, {"rect_from_masks": used}))
+        pieces = [front]
+        if cfg.split.enabled and cfg.rectify.enabled and views and any(v.image is not None for v in views):
+            stems = {st for st, _ in s.matched}
+            rf = rectify_front(front, views, cfg.rectify, np.array([v.stem in stems for v in views]))
+            pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views)
+        for k, piece in enumerate(pieces):
+            w, h = piece.size
+            if min(w, h) < fc.min_size or max(w, h) > fc.max_size:
+                report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
+                continue
+            info = {"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
+            fits.append((s, piece, info))
     fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
                          min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg)
     return [(s, f, info) for (s, _, info), f in zip(fits, fronts)]
@@ -91,21 +102,23 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         weights = cfg.types.prior
     parts: list[Part] = []
     report: list[dict] = []
-    fits = segment_fronts(mesh, segs, cam_centers, cfg, masks_of, parts, report)
+    fits = segment_fronts(mesh, segs, cam_centers, cfg, masks_of, parts, report, views)
     fronts = [f for _, f, _ in fits]
     mesh_pts, pt_face = sample_points(mesh, np.arange(len(mesh.faces)), cfg.handles.sample_per_m2, seed=1)
     pt_normal = np.asarray(mesh.face_normals)[pt_face]
     edge = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
     rc = cfg.rectify
-    image_cells = None
+    image_cells, colour = None, None
     if rc.enabled and views and any(v.handles is not None for v in views):
         detected = [np.array([v.stem in {st for st, _ in s.matched} for v in views]) for s, _, _ in fits]
-        _, cells, rates = rectify_fronts(fronts, views, rc, detected)
+        rfs, cells, rates = rectify_fronts(fronts, views, rc, detected)
         image_cells = (cells, rates, 1.5 * rc.res, rc.min_cells)
+        if rc.colour_handles and any(v.image is not None for v in views):
+            colour = [colour_handle(f, rf, rc) for f, rf in zip(fronts, rfs)]
     handles, gave_up = front_handles(fronts, mesh_pts, pt_normal, np.asarray(mesh.triangles_center), edge,
                                      cfg.handles, cfg.types.edge_frac,
                                      max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views,
-                                     image_cells)
+                                     image_cells, colour)
     seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
     partner = sliding_partners(fronts, handles, cfg.joints, seg_pts)
     floor_z = float(np.percentile(np.asarray(mesh.vertices)[:, 2], 1.0)) if len(mesh.vertices) else 0.0

@@ -13,7 +13,7 @@ from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import PartsFile, write_parts
-from drawer_lib.perception.decompose import HANDLE_LABELS, Segment
+from drawer_lib.perception.decompose import HANDLE_LABELS, Segment, absorb_handles
 from drawer_lib.perception.pipeline import load_segments
 from drawer_lib.runner import StageRun
 
@@ -39,8 +39,8 @@ def mask_source(cap: Capture):
 
 def train_views(cap: Capture, mesh, with_images: bool = False) -> list[View]:
     """The train views for :mod:`~drawer_lib.articulation.rectify`: camera, the depth of
-    ``mesh`` ray-cast from it, the union of its "handle" masks (None without detections) and,
-    with ``with_images``, its image."""
+    ``mesh`` ray-cast from it, the union of its "handle" masks and the label map of its other
+    masks, each handle given to the front it sits on (None without detections) and, with ``with_images``, its image."""
     from drawer_lib.geometry.raycast import Raycaster
 
     rc = Raycaster(np.asarray(mesh.vertices), np.asarray(mesh.faces))
@@ -49,12 +49,14 @@ def train_views(cap: Capture, mesh, with_images: bool = False) -> list[View]:
     for i in cap.train:
         cam = cap.camera(i)
         depth, _, _ = rc.depth_normals(cap.intrinsics, cam.w2c)
-        hmask = None
+        hmask, inst = None, None
         if dets:
             lab, rows = cap.detections(i)
             ids = [int(d["id"]) for d in rows if str(d.get("label", "")).strip().lower() in HANDLE_LABELS]
             hmask = np.isin(lab, ids) if ids else np.zeros(lab.shape, bool)
-        views.append(View(cam, depth, hmask, cap.image(i) if with_images else None, cap.frames[i].stem))
+            inst = absorb_handles(lab, rows).astype(np.uint16)  # a handle's pixels belong to its front
+            inst[np.isin(inst, ids)] = 0  # handles no front took
+        views.append(View(cam, depth, hmask, cap.image(i) if with_images else None, cap.frames[i].stem, inst))
     return views
 
 
@@ -70,7 +72,8 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
                          "view_rate needs (written by an older decompose: re-run it)")
     centers = np.stack([cap.frames[i].c2w[:3, 3] for i in cap.train])
     masks_of = mask_source(cap) if cap.has("detections_path") else None
-    views = train_views(cap, mesh) if cfg.rectify.enabled and cap.has("detections_path") else None
+    views = (train_views(cap, mesh, with_images=cfg.split.enabled or cfg.rectify.colour_handles)
+             if cfg.rectify.enabled and cap.has("detections_path") else None)
     parts, report = est(mesh, segs, centers, cfg, handle_hits=hits, masks_of=masks_of, face_views=face_views,
                         weights=weights, views=views)
     pf = PartsFile(tuple(parts))

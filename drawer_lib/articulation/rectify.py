@@ -31,21 +31,26 @@ class View:
     """One train view as rectification reads it: its camera, the ray-cast depth of the
     reconstructed surface (z, m, [H, W], 0 where no surface), the union of its "handle" masks
     (bool [H, W]) or None, its image (uint8 [H, W, 3]) or None, and its frame's ``stem`` (how
-    a segment names the views whose detections it matched)."""
+    a segment names the views whose detections it matched) and its other (non-handle) instance
+    masks as a label map (uint16 [H, W], 0 = none) or None."""
 
     camera: Camera
     depth: Float[np.ndarray, "H W"]
     handles: np.ndarray | None = None
     image: np.ndarray | None = None
     stem: str = ""
+    instances: np.ndarray | None = None
 
 
 @dataclass
 class RectifiedFront:
     """A front's grid: origin (``u0``, ``v0``, m from the centre), ``res`` (m); per cell
     ``seen`` (views that see it, int [Gv, Gu]), ``handle`` (of those, views whose handle mask
-    covers it at the handle offset) and ``rgb`` (mean colour in [0, 1], [Gv, Gu, 3]; NaN where
-    no view saw it, or where no view had an image)."""
+    covers it at the handle offset), ``rgb`` (mean colour in [0, 1], [Gv, Gu, 3]; NaN where
+    no view saw it, or where no view had an image) and the instance-mask boundaries: ``edge_u``
+    (views in which cells (i, j) and (i, j + 1), both seen, lie in different instance masks, or
+    one in none; [Gv, Gu], the last column 0), ``edge_v`` (likewise (i, j) and (i + 1, j)) and
+    ``pair_u`` / ``pair_v`` (the views that saw both cells of the pair)."""
 
     u0: float
     v0: float
@@ -54,6 +59,10 @@ class RectifiedFront:
     handle: np.ndarray
     handle_seen: np.ndarray
     rgb: np.ndarray
+    edge_u: np.ndarray | None = None
+    edge_v: np.ndarray | None = None
+    pair_u: np.ndarray | None = None
+    pair_v: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -119,6 +128,9 @@ def rectify_front(front: Front, views: list[View], cfg: RectifyConfig, detected:
     hseen = np.zeros(n, np.int32)
     rgb_sum = np.zeros((n, 3))
     rgb_n = np.zeros(n, np.int32)
+    shape = (gv, gu)
+    edge_u, edge_v = np.zeros(shape, np.int32), np.zeros(shape, np.int32)
+    pair_u, pair_v = np.zeros(shape, np.int32), np.zeros(shape, np.int32)
     if detected is not None and int(np.sum(detected)) < cfg.min_views:
         detected = None
     for t, view in enumerate(views):
@@ -127,15 +139,23 @@ def rectify_front(front: Front, views: list[View], cfg: RectifyConfig, detected:
         if view.image is not None:
             rgb_sum[ok] += view.image[r[ok], c[ok]] / 255.0
             rgb_n += ok
+        if view.instances is not None:
+            lab = np.where(ok, view.instances[r, c], 0).reshape(shape)
+            okg = ok.reshape(shape)
+            both_u, both_v = okg[:, :-1] & okg[:, 1:], okg[:-1, :] & okg[1:, :]
+            pair_u[:, :-1] += both_u
+            pair_v[:-1, :] += both_v
+            edge_u[:, :-1] += both_u & (lab[:, :-1] != lab[:, 1:])
+            edge_v[:-1, :] += both_v & (lab[:-1, :] != lab[1:, :])
         if view.handles is not None and (detected is None or detected[t]):
             okh, rh, ch = _sample(view, proud, normal, cos_min, cfg.occlusion_tol)
             hseen += okh
             hit += okh & view.handles[rh, ch]
     with np.errstate(invalid="ignore", divide="ignore"):
         rgb = np.where(rgb_n[:, None] > 0, rgb_sum / rgb_n[:, None], np.nan)
-    shape = (gv, gu)
+    has_inst = any(v.instances is not None for v in views)
     return RectifiedFront(u0, v0, cfg.res, seen.reshape(shape), hit.reshape(shape), hseen.reshape(shape),
-                          rgb.reshape(shape + (3,)))
+                          rgb.reshape(shape + (3,)), *((edge_u, edge_v, pair_u, pair_v) if has_inst else ()))
 
 
 def handle_points(front: Front, rf: RectifiedFront, cfg: RectifyConfig) -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,7 @@ from drawer_lib.io.capture import load_capture
 from drawer_lib.io.atomic import atomic_write_text
 from drawer_lib.io.images import read_json, write_json
 from drawer_lib.io.parts import read_parts
-from drawer_lib.io.parts import Part
-from drawer_lib.metrics.articulation import articulation_metrics, hinge_side, match_parts
+from drawer_lib.metrics.articulation import articulation_metrics, match_parts, part_kind
 from drawer_lib.metrics.motion import kinematic_motion_emd
 from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths, bench_name, capture_name
 from drawer_lib.report.markdown import md_table
@@ -32,23 +31,13 @@ WEIGHT_SOURCES = ("fitted", "prior")
 COUNT_KEYS = ("n_pred", "n_gt", "n_correct", "n_ignored")
 
 
-def part_label(p: Part | None) -> str:
-    """A part's kind for the confusion matrix: its family (``door``, ``drawer``, ...) with the
-    hinge side of a door or flap (``door_left``, ``flap_top``); ``missed`` for None."""
-    if p is None:
-        return "missed"
-    fam = str(p.extra.get("family", p.kind))
-    hinge = hinge_side(p) if fam in ("door", "flap") else None  # from the axis: GT and prediction alike
-    return f"{fam}_{hinge}" if hinge else fam
-
-
 def score_kitchen(kitchen: ScenePaths, parts_path: Path) -> dict:
     """Precision, recall, EA-score and counts of the parts at ``parts_path`` against the
     kitchen's ground truth, plus the EA-score of every correct revolute part (``eas``), the
     motion EMD of every correct pair with the prediction moved by its own joint in the first test
     view (``emds``; :func:`~drawer_lib.metrics.motion.kinematic_motion_emd`) and the
     (GT kind, predicted kind) of every GT part and every unmatched prediction outside the
-    ignore boxes (``confusion``: :func:`part_label`, ``none`` for no GT part)."""
+    ignore boxes (``confusion``: :func:`part_kind`, ``none`` for no GT part)."""
     cap = load_capture(kitchen.capture, check_files=False)
     gt = read_parts(kitchen.capture / capture_name("gt_parts"))
     pred = read_parts(parts_path)
@@ -61,9 +50,9 @@ def score_kitchen(kitchen: ScenePaths, parts_path: Path) -> dict:
     res["emds"] = [r["emd"] for r in emd_rows if r["emd"] is not None]
     by_gt = {j: i for i, j, _ in m.pairs}
     matched = set(by_gt.values()) | set(m.ignored)
-    res["confusion"] = ([[part_label(g), part_label(m.pred[by_gt[j]] if j in by_gt else None)]
+    res["confusion"] = ([[part_kind(g), part_kind(m.pred[by_gt[j]] if j in by_gt else None)]
                          for j, g in enumerate(m.gt)]
-                        + [["none", part_label(p)] for i, p in enumerate(m.pred) if i not in matched])
+                        + [["none", part_kind(p)] for i, p in enumerate(m.pred) if i not in matched])
     return res
 
 

@@ -130,6 +130,18 @@ def hinge_side(part: Part) -> str | None:
     return "bottom" if rel @ f.v < 0 else "top"
 
 
+def part_kind(part: Part | None) -> str:
+    """A part's kind as the benchmark's confusion matrix and the decision-stability check name
+    it: its family (``door``, ``drawer``, ...; the joint kind without one) with the hinge side
+    of a door or flap from its axis (``door_left``, ``flap_top``: ground truth and prediction
+    alike); ``missed`` for None."""
+    if part is None:
+        return "missed"
+    fam = str(part.extra.get("family", part.kind))
+    side = hinge_side(part) if fam in ("door", "flap") else None
+    return f"{fam}_{side}" if side else fam
+
+
 def axis_segment(part: Part) -> np.ndarray:
     """[2, 3] the stretch of a part's axis line that spans its front."""
     o, d = np.asarray(part.axis.origin), np.asarray(part.axis.direction)

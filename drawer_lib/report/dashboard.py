@@ -59,6 +59,7 @@ class SceneData:
     sheet: Path | None
     pareto: dict | None = None  # out/<scene>/pareto/table.json (the `pareto` experiment)
     pareto_plot: Path | None = None
+    decisions: list[dict] = field(default_factory=list)  # articulate/decisions.json rows of typed fronts
 
 
 @dataclass
@@ -112,9 +113,12 @@ def collect(out: Path, reports: Path, scenes: list[str], geometry_variants: list
         sheet = sp.file("twin", "contact_sheet")
         pdir = sp.root / PARETO_DIR
         pplot = pdir / LAYOUT["report"]["plot"]
+        dec = _json(sp.file("articulate", "decisions")) or {}
+        typed = [r for r in dec.get("segments", []) if "margin" in r]
         data.scenes.append(SceneData(s, mets, curves, rows, _json(sp.file("stability", "choice")),
                                      hm if hm.is_file() else None, sheet if sheet.is_file() else None,
-                                     _json(pdir / LAYOUT["report"]["table_json"]), pplot if pplot.is_file() else None))
+                                     _json(pdir / LAYOUT["report"]["table_json"]), pplot if pplot.is_file() else None,
+                                     typed))
     return data
 
 
@@ -283,6 +287,20 @@ def _articulation(data: ReportData) -> Table:
     return t
 
 
+def _low_margin(data: ReportData) -> Table:
+    """Every typed front whose decision margin is below ``articulate.types.low_margin``: the
+    decisions a small change of the evidence may flip (docs/formats.md, decisions.json)."""
+    t = Table(["scene", "segment", "part", "decided", "runner-up", "margin (log-odds)", "confidence", "handle"], [])
+    for sc in data.scenes:
+        for r in sorted((r for r in sc.decisions if r.get("low_margin")), key=lambda r: r["margin"]):
+            kind = r["family"] + (f" ({r['hinge']})" if r.get("hinge") else "")
+            h = r.get("handle")
+            t.rows.append([sc.name, str(r["segment"]), r.get("part", "– (fixed)"), kind, r.get("runner_up", "–"),
+                           _f(r["margin"], ".2f"), _f(r.get("confidence"), ".2f"),
+                           "none" if h is None else f"{h['orientation']} at ({h['a_u']:.2f}, {h['a_v']:.2f})"])
+    return t
+
+
 def _motion(data: ReportData) -> tuple[Table, Table]:
     t = Table(["scene", "motion EMD (mean)", "worst part", "parts scored", "paper EMD", "kinematic deviation (mm)",
                "integrator, timestep", "real-time factor"], [])
@@ -427,6 +445,11 @@ def render(data: ReportData) -> tuple[str, str]:
     add("appearance", _appearance(data), None if data.ablation else f"skipped: reports/ablation/{table} is missing")
     add("articulation", _articulation(data), "Precision = correct / predicted, recall = correct / GT (docs/formats.md); "
         "EA-score over correct revolute parts.")
+    low = _low_margin(data)
+    n_typed = sum(len(sc.decisions) for sc in data.scenes)
+    add("articulation", low if low.rows else None,
+        f"Low-margin decisions: {len(low.rows)} of {n_typed} typed fronts decided by less than "
+        "articulate.types.low_margin over the runner-up (check these first; the viewer marks them).")
     tm, tp = _motion(data)
     add("motion", tm, "Motion EMD (docs/formats.md): each part driven open in the twin against its GT joint; mean over "
         "correct parts. Kinematic deviation: the simulation against the part's own joint.")

@@ -161,7 +161,9 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
                                    "actuator": b.id if by_id[b.id].articulated else None,
                                    "gaussians": f"{gdir}/{b.id}.ply" if b.id in gauss else None,
                                    "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
-                                   "interior": raw[b.id].get("interior", {})})
+                                   "interior": raw[b.id].get("interior", {}),
+                                   "confidence": by_id[b.id].extra.get("confidence"),
+                                   "low_margin": bool(by_id[b.id].extra.get("low_margin", False))})
     write_json(run.out("index"), twin_json)
 
     # 4b: the shareable browser recording, every part opened in turn (drawer_lib/viewer)

@@ -39,6 +39,8 @@ from drawer_lib.viewer.scene import TwinScene, relative_poses
 FPS = 30.0  # pose updates per second sent to the browser
 TRACK_TAU = 0.25  # s, time constant of the target-tracking command in simulate mode
 COLORS = {"revolute": (255, 150, 40), "prismatic": (40, 190, 230)}
+LOW_MARGIN_COLOR = (230, 30, 60)  # the axis of a part whose type decision had a low margin
+LOW_MARGIN_MARK = "⚠ "  # before its slider's label
 HULL_COLORS = {"static": (0.55, 0.55, 0.62), "part": (0.2, 0.75, 0.35), "rigid": (0.85, 0.35, 0.3)}
 CUP_RADIUS, CUP_HEIGHT, CUP_WALL = 0.04, 0.09, 0.005
 BALL_RADIUS = 0.03
@@ -121,7 +123,8 @@ class TwinViewer:
                 j = b.joint
                 length = 0.3 if j.kind == "revolute" else max(0.15, j.range[1])
                 self.axes.append(scene.add_arrows(
-                    f"/axes/{b.id}", np.array([[j.anchor, j.anchor + length * j.axis]], np.float32), COLORS[j.kind],
+                    f"/axes/{b.id}", np.array([[j.anchor, j.anchor + length * j.axis]], np.float32),
+                    LOW_MARGIN_COLOR if b.low_margin else COLORS[j.kind],
                     shaft_radius=0.008, head_radius=0.02, head_length=0.05, visible=show_axes))
         self._set_initial_camera()
 
@@ -159,8 +162,14 @@ class TwinViewer:
                     continue
                 lo, hi = b.joint.range
                 unit = "rad" if b.kind == "revolute" else "m"
-                s = gui.add_slider(b.id, min=float(lo), max=float(hi), step=float((hi - lo) / 200 or 1e-3),
-                                   initial_value=float(min(max(0.0, lo), hi)), hint=f"{b.kind} joint, {unit}")
+                hint = f"{b.kind} joint, {unit}"
+                if b.confidence is not None:
+                    hint += f"; type decided with confidence {b.confidence:.2f}"
+                if b.low_margin:
+                    hint += " (low margin: the runner-up kind or hinge side was close)"
+                s = gui.add_slider((LOW_MARGIN_MARK if b.low_margin else "") + b.id, min=float(lo), max=float(hi),
+                                   step=float((hi - lo) / 200 or 1e-3), initial_value=float(min(max(0.0, lo), hi)),
+                                   hint=hint)
                 s.on_update(lambda ev, pid=b.id: self._on_slider(pid))
                 self.sliders[b.id] = s
             self.open_btn = gui.add_button("open all")
@@ -190,8 +199,10 @@ class TwinViewer:
         n_art = sum(b.articulated for b in sc.bodies)
         rt = "" if math.isnan(self.rt_factor) else f" · physics at **{self.rt_factor:.2f}×** real time"
         name = f"{sc.folder.parent.name}/{sc.folder.name}" if sc.folder.name == "twin" else sc.folder.name
+        low = [b.id for b in sc.bodies if b.low_margin]
+        warn = f" · {LOW_MARGIN_MARK}low-margin: {', '.join(low)}" if low else ""
         return (f"**{name}** · {sc.n_gaussians:,} Gaussians · {n_art} joints · "
-                f"{len(sc.bodies) - n_art} objects{rt}")
+                f"{len(sc.bodies) - n_art} objects{rt}{warn}")
 
     @staticmethod
     def _set_visible(handles, on: bool) -> None:

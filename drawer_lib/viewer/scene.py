@@ -79,6 +79,8 @@ class ViewBody:
     hulls: list[tuple[np.ndarray, np.ndarray]]
     joint: Joint | None
     mj_body: int
+    confidence: float | None = None  # the type decision's probability (parts.json), None when unknown
+    low_margin: bool = False  # the decision's margin over the runner-up was low: check this part
 
     @property
     def articulated(self) -> bool:
@@ -274,7 +276,9 @@ def load_twin_scene(folder: Path | str, min_scale: float = 1e-3) -> TwinScene:
                                  f"joint named {p.get('joint') or pid!r}")
             lo, hi = (float(x) for x in m.jnt_range[j])
             joint = Joint(kind, d.xanchor[j].copy(), d.xaxis[j].copy(), (lo, hi))
+        conf = p.get("confidence")
         bodies.append(ViewBody(pid, kind, _splats(folder, p.get("gaussians"), f"part {pid!r}", min_scale),
-                               body_hulls(m, d, b), joint, b))
+                               body_hulls(m, d, b), joint, b, None if conf is None else float(conf),
+                               bool(p.get("low_margin", False))))
     return TwinScene(folder, xml, m, static, bodies, d.xpos.copy(), d.xquat.copy())
 

@@ -98,3 +98,55 @@ def test_margin_and_confidence():
     assert ru == "door_right" and m == 0.0 and c < 0.5
     big = {k: v * 1e3 for k, v in scores.items()}  # no overflow with huge scores
     assert margin_confidence(big, "drawer")[2] == pytest.approx(1.0)
+
+
+def _colour_front(bar: tuple[float, float, float, float] | None, noise: float = 0.01, seed: int = 0):
+    """FRONT rectified without margin: a panel of one colour with noise, and a metal bar
+    (u0, u1, v0, v1 in m from the bottom-left corner)."""
+    from drawer_lib.articulation.rectify import RectifiedFront
+
+    res = 0.004
+    gu, gv = int(round(0.6 / res)), int(round(0.4 / res))
+    rgb = np.empty((gv, gu, 3))
+    rgb[:] = (0.45, 0.3, 0.2)
+    rgb += np.random.default_rng(seed).normal(0, noise, rgb.shape)
+    if bar is not None:
+        u0, u1, v0, v1 = (int(round(x / res)) for x in bar)
+        rgb[v0:v1, u0:u1] = (0.75, 0.75, 0.78)
+    seen = np.full((gv, gu), 10, np.int32)
+    return RectifiedFront(-0.3, -0.2, res, seen, np.zeros_like(seen), seen.copy(), rgb)
+
+
+def test_colour_handle_finds_a_bar_the_masks_missed():
+    from drawer_lib.articulation.handles import colour_handle
+
+    cfg = RectifyConfig()
+    pts = colour_handle(FRONT, _colour_front((0.48, 0.50, 0.20, 0.32)), cfg)  # a vertical pull by the right edge
+    assert pts is not None
+    h = describe_handle(FRONT, pts, "colour", HandlesConfig())
+    assert h.a_u == pytest.approx(0.49 / 0.6, abs=0.02) and h.a_v == pytest.approx(0.26 / 0.4, abs=0.02)
+    assert h.orientation == "vertical"
+
+
+@pytest.mark.parametrize("bar", [None, (0.05, 0.55, 0.18, 0.2), (0.0, 0.6, 0.0, 0.012)],
+                         ids=["plain panel", "a stripe across the front", "a gap along the edge"])
+def test_colour_handle_finds_nothing_that_is_not_a_handle(bar):
+    from drawer_lib.articulation.handles import colour_handle
+
+    assert colour_handle(FRONT, _colour_front(bar), RectifyConfig()) is None
+
+
+def test_sliding_needs_a_track_or_a_partner():
+    from drawer_lib.articulation.config import TypesConfig
+    from drawer_lib.articulation.decide import decide_by_score
+    from drawer_lib.articulation.scoring import Evidence
+
+    w = {k: {} for k in ("drawer", "door", "flap_top", "flap_bottom", "fixed")} | {"sliding": {"bias": 5.0}}
+    ev = dict(handle=None, size=(0.5, 0.7), z_mid=1.8, stacked=0, beside_left=True, beside_right=True,
+              partner=False, rail=0.0, carcass=None, labels={}, support=20)
+    dec, terms = decide_by_score(Evidence(**ev), TypesConfig(), w)
+    assert dec.family != "sliding" and "sliding" in terms["excluded"] and terms["scores"]["sliding"] == 5.0
+    dec, terms = decide_by_score(Evidence(**(ev | {"rail": 1.2})), TypesConfig(), w)
+    assert dec.family == "sliding" and terms["excluded"] == {}
+    dec, _ = decide_by_score(Evidence(**ev), TypesConfig(sliding_needs_track=False), w)
+    assert dec.family == "sliding"

@@ -4,9 +4,9 @@ confusion matrix."""
 import numpy as np
 
 from drawer_lib.articulation.joints import hinge_axis
-from drawer_lib.bench.evaluate import confusion_matrix, part_label
+from drawer_lib.bench.evaluate import confusion_matrix
 from drawer_lib.io.parts import Axis, Front, Part
-from drawer_lib.metrics.articulation import hinge_side
+from drawer_lib.metrics.articulation import hinge_side, part_kind
 
 FRONT = Front((1.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.7))
 
@@ -27,13 +27,13 @@ def test_hinge_side_from_the_axis():
     assert hinge_side(along_normal) is None
 
 
-def test_part_labels():
-    assert part_label(_revolute("left")) == "door_left"
-    assert part_label(_revolute("top", "flap")) == "flap_top"
-    assert part_label(None) == "missed"
+def test_part_kinds():
+    assert part_kind(_revolute("left")) == "door_left"
+    assert part_kind(_revolute("top", "flap")) == "flap_top"
+    assert part_kind(None) == "missed"
     slider = Part("drawer_0", "prismatic", Axis(FRONT.center, (0.0, -1.0, 0.0)), (0.0, 0.4), FRONT,
                   extra={"family": "drawer"})
-    assert part_label(slider) == "drawer"
+    assert part_kind(slider) == "drawer"
 
 
 def test_confusion_matrix_counts_and_order():

@@ -201,3 +201,35 @@ def test_a_diverged_simulation_is_reset_to_rest_and_said(viewer):
         assert np.isfinite(viewer.data.qpos).all()
     viewer.simulate(False)
     assert all(np.isfinite(viewer.q(p)) for p in viewer.sliders)
+
+
+def test_a_low_margin_part_is_marked(twin, tmp_path):
+    """twin.json's low_margin (from parts.json) marks the part: its slider's label and hint, its
+    axis colour and the info line; the others stay unmarked."""
+    import json
+    import shutil
+
+    from drawer_lib.viewer.app import LOW_MARGIN_COLOR, LOW_MARGIN_MARK
+
+    marked = tmp_path / "twin"
+    shutil.copytree(twin, marked)
+    tj = json.loads((marked / "twin.json").read_text())
+    for p in tj["parts"]:
+        if p["id"] == "door_0":
+            p["confidence"], p["low_margin"] = 0.55, True
+    (marked / "twin.json").write_text(json.dumps(tj))
+    scene = load_twin_scene(marked)
+    assert scene.body("door_0").low_margin and scene.body("door_0").confidence == pytest.approx(0.55)
+    assert not scene.body("drawer_0").low_margin and scene.body("drawer_0").confidence is None
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    v = TwinViewer(scene, server, show_axes=True)
+    try:
+        assert v.sliders["door_0"].label == LOW_MARGIN_MARK + "door_0" and "low margin" in v.sliders["door_0"].hint
+        assert "confidence 0.55" in v.sliders["door_0"].hint
+        assert v.sliders["drawer_0"].label == "drawer_0"
+        assert "low-margin: door_0" in v._info_text()
+        colours = {tuple(np.asarray(a.colors).reshape(-1, 3)[0].tolist()) for a in v.axes}
+        assert tuple(LOW_MARGIN_COLOR) in colours
+    finally:
+        v.close()
+        server.stop()

@@ -1,0 +1,175 @@
+"""Split a front that holds several: the gap lines of the rectified front.
+
+A detector that merges touching fronts in most views (a drawer stack as one mask, a double door,
+a whole base run) leaves one segment, hence one rectangle, over several fronts; multi-view
+voting cannot undo it. Two kinds of evidence on the front rectified from every view
+(:mod:`~drawer_lib.articulation.rectify`, a few millimetres per cell) still show where one front
+ends and the next begins:
+
+- the instance masks: in the views where the detector did not merge them, a mask boundary runs
+  along the gap (a cell pair in different masks, each handle counted as its front's, in at least
+  ``boundary_rate`` of the views that saw both: strong; in ``boundary_rate_handles`` of them:
+  weak; give or take ``slack`` cells, since masks are ragged by a pixel or two);
+- the image: a gap is a straight line lighter or darker than the panels on both sides (a cell
+  whose grey level differs from the mean of the cells ``step`` to either side by more than
+  max(``contrast``, ``texture_k`` x the median such difference over the front: its texture),
+  give or take one cell); it cuts only between two handles (the detector merged the pair in
+  every view: the gap and the two handles show it).
+
+:func:`xy_cuts` cuts the rectangle recursively (an XY-cut): a cut is the row or column of the
+current piece whose strong boundary cells cover at least ``coverage`` of each third of the
+piece's span (or, with handle cells on both sides of it, whose weak boundary or image line
+cells cover ``coverage_handles``),
+at least ``min_piece`` from the piece's edges and crossing no handle cell; the best-covered one wins, and both sides are cut again (up
+to ``max_depth``). A tile joint or a wood grain has no mask along it and no handle either side,
+nor has the end of a false detection that happens to cross a thin drawer in a few views;
+a shaker frame lies within ``min_piece`` of an edge; a handle does not span a front.
+Shapes: grids are [Gv, Gu], v bottom -> top, u left -> right.
+"""
+
+import numpy as np
+
+from drawer_lib.articulation.config import SplitConfig
+from drawer_lib.articulation.rectify import RectifiedFront
+from drawer_lib.io.parts import Front
+
+Piece = tuple[int, int, int, int]  # (u0, u1, v0, v1): cell ranges, end exclusive
+
+
+def line_cells(gray: np.ndarray, step: int, contrast: float, texture_k: float) -> tuple[np.ndarray, np.ndarray]:
+    """(across_u, across_v) bool [Gv, Gu]: cells whose grey level differs from the mean of the
+    cells ``step`` away on either side (along u, along v) by more than the threshold (module
+    docstring); cells within ``step`` of the border are never line cells. ``gray`` [Gv, Gu] in
+    [0, 1], finite."""
+    gv, gu = gray.shape
+    du = np.zeros_like(gray)
+    dv = np.zeros_like(gray)
+    if gu > 2 * step:
+        du[:, step:-step] = np.abs(gray[:, step:-step] - 0.5 * (gray[:, :-2 * step] + gray[:, 2 * step:]))
+    if gv > 2 * step:
+        dv[step:-step, :] = np.abs(gray[step:-step, :] - 0.5 * (gray[:-2 * step, :] + gray[2 * step:, :]))
+    inner_u, inner_v = du[:, step:gu - step], dv[step:gv - step, :]
+    tu = max(contrast, texture_k * float(np.median(inner_u))) if inner_u.size else np.inf
+    tv = max(contrast, texture_k * float(np.median(inner_v))) if inner_v.size else np.inf
+    return du > tu, dv > tv
+
+
+def boundary_cells(rf: RectifiedFront, rate: float, min_views: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(across_u, across_v) bool [Gv, Gu]: cell pairs in different instance masks in at least
+    ``rate`` of the >= ``min_views`` views that saw both, and in at least two (:class:`RectifiedFront` ``edge_u`` /
+    ``edge_v``), on the first cell of the pair; None without instance masks."""
+    if rf.edge_u is None:
+        return None
+    bu = (rf.pair_u >= min_views) & (rf.edge_u >= np.maximum(2, rate * rf.pair_u))
+    bv = (rf.pair_v >= min_views) & (rf.edge_v >= np.maximum(2, rate * rf.pair_v))
+    return bu, bv
+
+
+def _widen(a: np.ndarray, cells: int, axis: int) -> np.ndarray:
+    """``a`` (bool) dilated by ``cells`` along ``axis``."""
+    if cells <= 0:
+        return a
+    from scipy.ndimage import maximum_filter1d
+
+    return maximum_filter1d(a.astype(np.uint8), 2 * cells + 1, axis=axis).astype(bool)
+
+
+def _span_coverage(lines: np.ndarray, parts: int = 3) -> np.ndarray:
+    """Per column of ``lines`` [A, B] (bool), the least fraction of line cells over ``parts``
+    equal stretches of its A rows: a gap runs across the whole piece, a line along part of it
+    (the gap of a drawer stack beside a door) is not a cut of the piece yet."""
+    chunks = np.array_split(lines, min(parts, len(lines)), axis=0)
+    return np.min([c.mean(0) for c in chunks], axis=0)
+
+
+def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarray, lo: int, hi: int, a0: int,
+              a1: int, min_cells: int, coverage: float, coverage_handles: float) -> tuple[int, float]:
+    """The best cut along axis 1 of the line maps [A, B] ``lines`` = (strong mask boundaries,
+    weak ones, image lines) between columns lo + ``min_cells`` and hi - ``min_cells``, over rows
+    a0..a1: (column, coverage) or (-1, 0). A column qualifies when its strong boundary cells
+    cover ``coverage`` of each third of the rows (:func:`_span_coverage`), or, with handle cells
+    on both sides of it, its weak boundary or image line cells cover ``coverage_handles`` (a
+    tile joint, a grain line or the end of a false detection has no handle on either side); no
+    column through a handle."""
+    if hi - lo < 2 * min_cells or a1 <= a0:
+        return -1, 0.0
+    strong, weak, img = (_span_coverage(x[a0:a1, lo:hi]) for x in lines)
+    h = handle[a0:a1, lo:hi].any(0)
+    left = np.concatenate([[False], np.cumsum(h)[:-1] > 0])  # a handle column before this one
+    right = np.concatenate([(np.cumsum(h[::-1])[::-1] > 0)[1:], [False]])  # ... after it
+    aided = np.maximum(weak, img)
+    ok = (strong >= coverage) | ((aided >= coverage_handles) & left & right)
+    ok &= ~h
+    ok[:min_cells] = False
+    ok[len(ok) - min_cells:] = False
+    if not ok.any():
+        return -1, 0.0
+    score = np.where(ok, np.maximum(strong, aided), -1.0)
+    j = int(np.argmax(score))
+    k = j  # the middle of the run of equal scores (a line widened by the slack is a plateau)
+    while k + 1 < len(score) and score[k + 1] == score[j]:
+        k += 1
+    return lo + (j + k) // 2, float(score[j])
+
+
+def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], handle: np.ndarray,
+            piece: Piece, coverage: float, coverage_handles: float, min_cells: int, max_depth: int) -> list[Piece]:
+    """The leaves of the recursive cut of ``piece`` (cells) at full-span gap lines (module
+    docstring). ``lines_u`` = (strong mask boundaries, weak ones, image lines) across u
+    (vertical lines), ``lines_v`` the same across v (horizontal lines), each bool [Gv, Gu];
+    ``handle`` [Gv, Gu]: handle cells (no cut crosses one; with one on each side a cut needs only
+    ``coverage_handles`` of the weak kinds)."""
+    u0, u1, v0, v1 = piece
+    if max_depth <= 0:
+        return [piece]
+    ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, min_cells, coverage, coverage_handles)
+    iv, cv = _best_cut(tuple(x.T for x in lines_v), handle.T, v0, v1, u0, u1, min_cells, coverage, coverage_handles)
+    if ju < 0 and iv < 0:
+        return [piece]
+    if cu >= cv:
+        halves = [(u0, ju, v0, v1), (ju + 1, u1, v0, v1)]
+    else:
+        halves = [(u0, u1, v0, iv), (u0, u1, iv + 1, v1)]
+    return [leaf for h in halves
+            for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells, max_depth - 1)]
+
+
+def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_rate: float, handle_min_views: int
+                ) -> list[Front]:
+    """``front`` cut at its gap lines (:func:`xy_cuts` on the rectified front ``rf``'s instance
+    boundaries and mean colour inside the rectangle; cells no view saw take the front's median
+    grey; handle cells: rate >= ``handle_min_rate`` over >= ``handle_min_views`` views, also
+    the least views a boundary needs); ``[front]`` when no line qualifies or nothing was seen.
+    Pieces keep the front's plane and axes."""
+    uu, vv = rf.uv()
+    w, h = front.size
+    cols = np.flatnonzero(np.abs(uu[0]) <= w / 2)
+    rows = np.flatnonzero(np.abs(vv[:, 0]) <= h / 2)
+    if len(cols) < 3 or len(rows) < 3:
+        return [front]
+    gray = rf.rgb.mean(axis=2)[np.ix_(rows, cols)]  # NaN where no view saw the cell
+    if not np.isfinite(gray).any():
+        return [front]
+    gray = np.where(np.isfinite(gray), gray, np.nanmedian(gray))
+    hmap = (rf.handle_rate(handle_min_views) >= handle_min_rate)[np.ix_(rows, cols)]
+    iu, iv = line_cells(gray, cfg.step, cfg.contrast, cfg.texture_k)
+    iu, iv = _widen(iu, 1, 1), _widen(iv, 1, 0)
+    maps_u, maps_v = [], []
+    for rate in (cfg.boundary_rate, cfg.boundary_rate_handles):
+        bd = boundary_cells(rf, rate, handle_min_views)
+        maps_u.append(np.zeros_like(iu) if bd is None else _widen(bd[0][np.ix_(rows, cols)], cfg.slack, 1))
+        maps_v.append(np.zeros_like(iv) if bd is None else _widen(bd[1][np.ix_(rows, cols)], cfg.slack, 0))
+    min_cells = max(1, int(np.ceil(cfg.min_piece / rf.res)))
+    pieces = xy_cuts((*maps_u, iu), (*maps_v, iv), hmap, (0, len(cols), 0, len(rows)), cfg.coverage,
+                     cfg.coverage_handles, min_cells, cfg.max_depth)
+    if len(pieces) == 1:
+        return [front]
+    c, u, v, res = np.asarray(front.center), np.asarray(front.u), front.v, rf.res
+    u_lo, v_lo = uu[0, cols[0]] - res / 2, vv[rows[0], 0] - res / 2
+    out = []
+    for a0, a1, b0, b1 in pieces:
+        pu0, pu1 = max(u_lo + a0 * res, -w / 2), min(u_lo + a1 * res, w / 2)
+        pv0, pv1 = max(v_lo + b0 * res, -h / 2), min(v_lo + b1 * res, h / 2)
+        center = c + 0.5 * (pu0 + pu1) * u + 0.5 * (pv0 + pv1) * v
+        out.append(Front(tuple(center.tolist()), front.normal, front.u, (float(pu1 - pu0), float(pv1 - pv0))))
+    return out

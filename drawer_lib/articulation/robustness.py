@@ -1,0 +1,61 @@
+"""Do the decisions hold when the mesh moves by its last bits? The reconstructed mesh of the same
+capture differs between machines, SDF seeds and thread counts by fractions of a millimetre; a
+kind or hinge side that changes under such a change had no margin. :func:`jitter_run` articulates
+a scene again on its own decompose output with every mesh vertex moved by Gaussian noise of
+``sigma`` metres (the faces, hence the segments, unchanged), and :func:`compare_parts` says which
+parts kept their kind and hinge side (``scripts/decision_stability.py``)."""
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.pipeline import run_articulate
+from drawer_lib.io.capture import Capture
+from drawer_lib.io.parts import PartsFile, read_parts
+from drawer_lib.metrics.articulation import match_parts, part_kind
+from drawer_lib.paths import stage_name
+from drawer_lib.runner import stage_run
+
+
+def jitter_mesh(mesh: trimesh.Trimesh, sigma: float, seed: int) -> trimesh.Trimesh:
+    """``mesh`` with every vertex moved by isotropic Gaussian noise of ``sigma`` m (same faces)."""
+    if not sigma >= 0:
+        raise ValueError(f"jitter_mesh: sigma = {sigma} must be >= 0")
+    rng = np.random.default_rng(seed)
+    v = np.asarray(mesh.vertices, np.float64) + rng.normal(0.0, sigma, (len(mesh.vertices), 3))
+    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
+
+
+def compare_parts(ref: PartsFile, other: PartsFile) -> list[dict]:
+    """Per articulated part of ``ref``: its kind, the kind of the part of ``other`` on the same
+    front (front overlap, as the articulation metrics match) or ``missed``, whether it kept it,
+    and ``ref``'s margin."""
+    m = match_parts(other, ref)
+    by_ref = {j: i for i, j, _ in m.pairs}
+    rows = []
+    for j, g in enumerate(m.gt):
+        k_ref = part_kind(g)
+        k_new = part_kind(m.pred[by_ref[j]]) if j in by_ref else "missed"
+        rows.append({"part": g.id, "kind": k_ref, "now": k_new, "kept": k_ref == k_new,
+                     "margin": g.extra.get("margin")})
+    return rows
+
+
+def jitter_run(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, weights: dict, sigma: float, seed: int
+               ) -> PartsFile:
+    """The scene articulated again on a copy of ``seg_dir`` whose mesh is :func:`jitter_mesh`'d."""
+    from drawer_lib.io.mesh import load_mesh
+
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp) / "decompose"
+        shutil.copytree(seg_dir, d)
+        mesh_p = d / stage_name("decompose", "mesh")
+        jitter_mesh(load_mesh(mesh_p), sigma, seed).export(mesh_p)
+        out = Path(tmp) / "articulate"
+        with stage_run("articulate", out, seed=0) as r:
+            run_articulate(cfg, cap, d, r, weights=weights)
+        return read_parts(out / stage_name("articulate", "parts"))
