@@ -1,0 +1,81 @@
+#!/usr/bin/env python
+"""Do a scene's kinds and hinge sides hold across SDF seeds and thread counts? Rebuilds the
+geometry of the scene's own capture (sdf -> mesh -> decompose -> articulate, the pipeline's
+stages and params.yaml) with other seeds and thread counts in a scratch folder, and compares
+every run's parts with the pipeline's own (seed in params.yaml, the threads `make run` gave it)
+part by part (drawer_lib/articulation/robustness.py).
+
+    python scripts/sdf_seed_stability.py [--scene kitchen_small] [--runs 1:1 2:1 0:2] [--json out.json]
+
+A run is SEED:THREADS. Takes one SDF training per run (about 6 min each on this machine).
+"""
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from drawer_lib.articulation.robustness import compare_parts
+from drawer_lib.io.parts import read_parts
+from drawer_lib.paths import ScenePaths
+
+ROOT = Path(__file__).resolve().parent.parent
+STAGES = ("sdf", "mesh", "decompose", "articulate")
+
+
+def rebuild(scene: str, seed: int, threads: int, work: Path, out: Path) -> Path:
+    """The scene's parts.json rebuilt from its capture with ``seed`` and ``threads`` under ``work``."""
+    root = work / f"seed{seed}_threads{threads}"
+    if root.exists():
+        shutil.rmtree(root)
+    src, dst = ScenePaths(out, scene), ScenePaths(root, scene)
+    dst.root.mkdir(parents=True)
+    (dst.root / src.capture.name).symlink_to(src.capture.resolve())
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads),
+           "NUMBA_NUM_THREADS": str(threads)}
+    for st in STAGES:
+        t = time.time()
+        subprocess.run([sys.executable, "-m", f"stages.{st}", "-cn", "dvc_stage", f"scene={scene}", f"seed={seed}",
+                        f"paths.out={root}"], cwd=ROOT, env=env, check=True, stdout=subprocess.DEVNULL)
+        print(f"  seed {seed}, {threads} thread(s): {st} {time.time() - t:.0f} s", flush=True)
+    return dst.parts
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scene", default="kitchen_small")
+    ap.add_argument("--runs", nargs="+", default=["1:1", "2:1", "0:2"], help="SEED:THREADS")
+    ap.add_argument("--work", type=Path, default=Path("/tmp/drawer_sdf_seeds"))
+    ap.add_argument("--json", type=Path, default=None)
+    a = ap.parse_args()
+    p = yaml.safe_load((ROOT / "params.yaml").read_text())
+    out = ROOT / p["paths"]["out"]
+    ref_path = ScenePaths(out, a.scene).parts
+    ref = read_parts(ref_path)
+    runs = {}
+    for r in a.runs:
+        seed, threads = (int(x) for x in r.split(":"))
+        runs[r] = compare_parts(ref, read_parts(rebuild(a.scene, seed, threads, a.work, out)))
+    parts = [row["part"] for row in next(iter(runs.values()))] if runs else []
+    print(f"\n{a.scene}: the pipeline's parts (seed {p['seed']}) against rebuilds at SEED:THREADS\n")
+    print("| part | kind | margin | " + " | ".join(runs) + " |\n|---|---|---|" + "---|" * len(runs))
+    for i, pid in enumerate(parts):
+        r0 = runs[a.runs[0]][i]
+        m = r0["margin"]
+        print(f"| {pid} | {r0['kind']} | {'–' if m is None else f'{m:.2f}'} | "
+              + " | ".join("same" if rs[i]["kept"] else rs[i]["now"] for rs in runs.values()) + " |")
+    flips = sum(not row["kept"] for rs in runs.values() for row in rs)
+    print(f"\nchanged: {flips} of {len(parts) * len(runs)} part-runs")
+    if a.json:
+        a.json.write_text(json.dumps({"scene": a.scene, "reference_seed": p["seed"], "runs": runs, "changed": flips},
+                                     indent=1))
+
+
+if __name__ == "__main__":
+    main()
