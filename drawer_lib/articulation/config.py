@@ -161,8 +161,11 @@ class SplitConfig:
     coverage_handles: float = 0.35
     min_piece: float = 0.1
     max_depth: int = 6
+    duplicate_iou: float = 0.5
 
     def __post_init__(self):
+        if not 0 < self.duplicate_iou <= 1:
+            raise ConfigError(f"articulate.split.duplicate_iou = {self.duplicate_iou} must be in (0, 1]")
         if self.step < 1 or self.max_depth < 0 or self.slack < 0:
             raise ConfigError("articulate.split: need step >= 1, slack >= 0 and max_depth >= 0")
         if not 0 < self.boundary_rate_handles <= self.boundary_rate <= 1:

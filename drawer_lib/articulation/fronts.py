@@ -167,6 +167,26 @@ def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_ove
     return out
 
 
+def coplanar_iou(a: Front, b: Front, plane_tol: float = 0.05, max_angle_deg: float = 25.0) -> float:
+    """IoU of two fronts' rectangles in ``a``'s plane (``b``'s corners cast onto ``a``'s u, v and
+    bounded there); 0 when their normals differ by more than ``max_angle_deg`` or ``b``'s centre
+    lies farther than ``plane_tol`` (m) from ``a``'s plane."""
+    na, nb = np.asarray(a.normal), np.asarray(b.normal)
+    if na @ nb < np.cos(np.deg2rad(max_angle_deg)):
+        return 0.0
+    ca = np.asarray(a.center)
+    if abs((np.asarray(b.center) - ca) @ na) > plane_tol:
+        return 0.0
+    u, v = np.asarray(a.u), a.v
+    rel = b.corners() - ca
+    bu, bv = rel @ u, rel @ v
+    lo = np.maximum([-a.size[0] / 2, -a.size[1] / 2], [bu.min(), bv.min()])
+    hi = np.minimum([a.size[0] / 2, a.size[1] / 2], [bu.max(), bv.max()])
+    inter = float(np.prod(np.clip(hi - lo, 0.0, None)))
+    union = a.size[0] * a.size[1] + float(np.ptp(bu) * np.ptp(bv)) - inter
+    return inter / union if union > 0 else 0.0
+
+
 def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, min_overlap: float = 0.5,
                 max_angle_deg: float = 10.0) -> list[Front]:
     """Fronts whose facing edges abut (:func:`abutting_edges`) have one boundary, estimated

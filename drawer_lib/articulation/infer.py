@@ -16,6 +16,7 @@ from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.decide import decide_by_handle, decide_by_score
 from drawer_lib.articulation.fronts import (
     abutting_edges,
+    coplanar_iou,
     fit_front,
     refine_with_masks,
     sample_points,
@@ -79,9 +80,31 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                 continue
             info = {"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
             fits.append((s, piece, info))
+    fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
                          min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg)
     return [(s, f, info) for (s, _, info), f in zip(fits, fronts)]
+
+
+def drop_duplicate_pieces(fits: list[tuple[Segment, Front, dict]], min_iou: float, report: list[dict]
+                          ) -> list[tuple[Segment, Front, dict]]:
+    """``fits`` without the pieces of cut segments that repeat a front already there: a merged
+    segment's rectangle may span fronts the detector also saw on their own, which are segments
+    of their own. A piece goes when its rectangle overlaps (:func:`coplanar_iou` >= ``min_iou``)
+    the front of a segment that was not cut, or a piece kept before it (pieces of better
+    supported segments first); ``report`` says which."""
+    kept = [f for s, f, info in fits if "piece" not in info]
+    drop = set()
+    pieces = sorted((i for i, (_, _, info) in enumerate(fits) if "piece" in info), key=lambda i: -fits[i][0].support)
+    for i in pieces:
+        s, f, info = fits[i]
+        if any(coplanar_iou(f, g) >= min_iou for g in kept):
+            drop.add(i)
+            report.append({"segment": s.id, "family": "none", "reason": f"piece {info['piece']} of {info['of']} "
+                           "repeats a front another segment gives", "piece": info["piece"], "of": info["of"]})
+        else:
+            kept.append(f)
+    return [x for i, x in enumerate(fits) if i not in drop]
 
 
 def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,

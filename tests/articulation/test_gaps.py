@@ -101,3 +101,25 @@ def test_nothing_seen_is_no_split():
 def test_config_checked(bad):
     with pytest.raises(ConfigError, match="articulate.split"):
         SplitConfig(**bad)
+
+
+def test_a_piece_that_repeats_another_segments_front_is_dropped():
+    from drawer_lib.articulation.fronts import coplanar_iou
+    from drawer_lib.articulation.infer import drop_duplicate_pieces
+    from drawer_lib.perception.decompose import Segment
+
+    def seg(i, support):
+        return Segment(i, np.zeros(0, np.int64), 1.0, support, {}, True, np.zeros(3), 0.0, np.zeros(3))
+
+    own = Front((0.8, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.4, 0.6))  # a door detected on its own
+    piece_a = Front((0.805, -0.605, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.39, 0.6))  # the same door, cut out
+    piece_b = Front((1.2, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.4, 0.6))  # its neighbour: only here
+    assert coplanar_iou(own, piece_a) > 0.9 and coplanar_iou(own, piece_b) == pytest.approx(0.0, abs=1e-9)
+    turned = Front((0.8, -0.6, 0.5), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.4, 0.6))
+    assert coplanar_iou(own, turned) == 0.0
+    fits = [(seg(1, 30), own, {}), (seg(2, 20), piece_a, {"piece": 0, "of": 2}), (seg(2, 20), piece_b, {"piece": 1, "of": 2}),
+            (seg(3, 10), Front(piece_b.center, piece_b.normal, piece_b.u, (0.41, 0.6)), {"piece": 0, "of": 3})]
+    report = []
+    kept = drop_duplicate_pieces(fits, 0.5, report)
+    assert [(s.id, info.get("piece")) for s, _, info in kept] == [(1, None), (2, 1)]  # the better supported piece stays
+    assert [(r["segment"], r["piece"]) for r in report] == [(2, 0), (3, 0)]
