@@ -5,9 +5,11 @@ stages and params.yaml) with other seeds and thread counts in a scratch folder, 
 every run's parts with the pipeline's own (seed in params.yaml, the threads `make run` gave it)
 part by part (drawer_lib/articulation/robustness.py).
 
-    python scripts/sdf_seed_stability.py [--scene kitchen_small] [--runs 1:1 2:1 0:2] [--json out.json]
+    python scripts/sdf_seed_stability.py [--scene kitchen_small] [--runs 1:1 2:1 0:2] [--json out.json] [--reuse]
 
-A run is SEED:THREADS. Takes one SDF training per run (about 6 min each on this machine).
+A run is SEED:THREADS. Takes one SDF training per run (about 6 min each on this machine);
+``--reuse`` keeps the geometry of an earlier call and articulates it again (after a change of
+the articulation alone).
 """
 
 import argparse
@@ -29,17 +31,22 @@ ROOT = Path(__file__).resolve().parent.parent
 STAGES = ("sdf", "mesh", "decompose", "articulate")
 
 
-def rebuild(scene: str, seed: int, threads: int, work: Path, out: Path) -> Path:
-    """The scene's parts.json rebuilt from its capture with ``seed`` and ``threads`` under ``work``."""
+def rebuild(scene: str, seed: int, threads: int, work: Path, out: Path, reuse: bool = False) -> Path:
+    """The scene's parts.json rebuilt from its capture with ``seed`` and ``threads`` under
+    ``work`` (``reuse``: only articulate again, on the decompose output already there)."""
     root = work / f"seed{seed}_threads{threads}"
-    if root.exists():
-        shutil.rmtree(root)
     src, dst = ScenePaths(out, scene), ScenePaths(root, scene)
-    dst.root.mkdir(parents=True)
-    (dst.root / src.capture.name).symlink_to(src.capture.resolve())
+    stages = STAGES
+    if reuse and dst.stage_dir("decompose").is_dir():
+        stages = ("articulate",)
+    else:
+        if root.exists():
+            shutil.rmtree(root)
+        dst.root.mkdir(parents=True)
+        (dst.root / src.capture.name).symlink_to(src.capture.resolve())
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads),
            "NUMBA_NUM_THREADS": str(threads)}
-    for st in STAGES:
+    for st in stages:
         t = time.time()
         subprocess.run([sys.executable, "-m", f"stages.{st}", "-cn", "dvc_stage", f"scene={scene}", f"seed={seed}",
                         f"paths.out={root}"], cwd=ROOT, env=env, check=True, stdout=subprocess.DEVNULL)
@@ -53,6 +60,7 @@ def main() -> None:
     ap.add_argument("--runs", nargs="+", default=["1:1", "2:1", "0:2"], help="SEED:THREADS")
     ap.add_argument("--work", type=Path, default=Path("/tmp/drawer_sdf_seeds"))
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--reuse", action="store_true", help="articulate the geometry of an earlier call again")
     a = ap.parse_args()
     p = yaml.safe_load((ROOT / "params.yaml").read_text())
     out = ROOT / p["paths"]["out"]
@@ -61,7 +69,7 @@ def main() -> None:
     runs = {}
     for r in a.runs:
         seed, threads = (int(x) for x in r.split(":"))
-        runs[r] = compare_parts(ref, read_parts(rebuild(a.scene, seed, threads, a.work, out)))
+        runs[r] = compare_parts(ref, read_parts(rebuild(a.scene, seed, threads, a.work, out, a.reuse)))
     parts = [row["part"] for row in next(iter(runs.values()))] if runs else []
     print(f"\n{a.scene}: the pipeline's parts (seed {p['seed']}) against rebuilds at SEED:THREADS\n")
     print("| part | kind | margin | " + " | ".join(runs) + " |\n|---|---|---|" + "---|" * len(runs))
