@@ -268,6 +268,71 @@ class JointsConfig:
 
 
 @dataclass(frozen=True)
+class InteractionConfig:
+    """The interaction test (:mod:`drawer_lib.articulation.interaction`): each moving
+    hypothesis' panel swept along its joint through the mesh's points (sampled every
+    ``spacing`` on the front inset by ``inset``, ``step`` of motion at a time); a contact is
+    ``min_hits`` panel samples within ``clearance`` of points that are not the front's own (its
+    rectangle grown by ``own_margin``, from ``own_depth`` behind to ``own_proud`` in front of
+    it). A hypothesis blocked before ``min_clear`` of its range is excluded by the score rule, and
+    a drawer when the ``room_percentile`` of the depths of the points behind the front (probed
+    to ``room_probe``) is under ``drawer_min_room``."""
+
+    enabled: bool = True
+    clearance: float = 0.015
+    spacing: float = 0.03
+    inset: float = 0.03
+    step: float = 0.03
+    min_hits: int = 3
+    own_margin: float = 0.03
+    own_depth: float = 0.03
+    own_proud: float = 0.1
+    min_clear: float = 0.5
+    room_probe: float = 0.3
+    room_percentile: float = 10.0
+    drawer_min_room: float = 0.15
+
+    def __post_init__(self):
+        if min(self.clearance, self.spacing, self.step, self.room_probe) <= 0 or self.min_hits < 1:
+            raise ConfigError("articulate.interaction: clearance, spacing, step, room_probe must be > 0 and min_hits >= 1")
+        if not 0 <= self.min_clear <= 1:
+            raise ConfigError(f"articulate.interaction.min_clear = {self.min_clear} must be in [0, 1]")
+        if min(self.inset, self.own_margin, self.own_depth, self.own_proud, self.drawer_min_room) < 0:
+            raise ConfigError("articulate.interaction: inset, own_margin, own_depth, own_proud, drawer_min_room must be >= 0")
+        if not 0 <= self.room_percentile <= 100:
+            raise ConfigError(f"articulate.interaction.room_percentile = {self.room_percentile} must be in [0, 100]")
+
+
+@dataclass(frozen=True)
+class FalseFrontsConfig:
+    """A world-fixed false front (a detector that takes a patch of wall, a window or an
+    appliance panel for a front in every view) is dropped, not typed: no gap runs round it (no
+    side of its rectified image shows a line or an edge within ``line_slack`` m along
+    ``line_coverage`` of its length; :func:`~drawer_lib.articulation.gaps.border_lines`), the
+    surface runs on flush beyond ``min_flush_sides`` of its sides (``flush_frac`` of the mesh
+    points ``ring`` = [from, to] m beyond the side within ``flush_tol`` of its plane, with at
+    least ``min_points`` there; :func:`~drawer_lib.articulation.probes.flush_sides`), and no
+    handle detection or protrusion says otherwise (a handle read off colours alone does not)."""
+
+    enabled: bool = True
+    line_slack: float = 0.012
+    line_coverage: float = 0.5
+    ring: list[float] = field(default_factory=lambda: [0.03, 0.1])
+    flush_tol: float = 0.01
+    flush_frac: float = 0.7
+    min_points: int = 20
+    min_flush_sides: int = 4
+
+    def __post_init__(self):
+        if len(self.ring) != 2 or not 0 <= self.ring[0] < self.ring[1]:
+            raise ConfigError(f"articulate.false_fronts.ring = {self.ring} must be [from, to] with 0 <= from < to")
+        if not (0 <= self.line_coverage <= 1 and 0 <= self.flush_frac <= 1 and 0 <= self.min_flush_sides <= 4):
+            raise ConfigError("articulate.false_fronts: line_coverage and flush_frac in [0, 1], min_flush_sides in 0..4")
+        if self.line_slack < 0 or self.flush_tol <= 0 or self.min_points < 1:
+            raise ConfigError("articulate.false_fronts: line_slack >= 0, flush_tol > 0, min_points >= 1")
+
+
+@dataclass(frozen=True)
 class ArticulateConfig:
     """Segments -> ``parts.json`` (``drawer.parts/1``, docs/formats.md). ``estimator``: ``geometric`` (built in: plane,
     rectangle, handle and layout cues) or a learned one (``3doi``, ``vlm``: named slots that need
@@ -281,3 +346,5 @@ class ArticulateConfig:
     split: SplitConfig = field(default_factory=SplitConfig)
     types: TypesConfig = field(default_factory=TypesConfig)
     joints: JointsConfig = field(default_factory=JointsConfig)
+    interaction: InteractionConfig = field(default_factory=InteractionConfig)
+    false_fronts: FalseFrontsConfig = field(default_factory=FalseFrontsConfig)

@@ -47,24 +47,33 @@ def decide_by_handle(h: Handle | None, labels: dict, cfg: TypesConfig) -> Decisi
     return Decision("drawer", reason="central handle")
 
 
-def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str, float]]) -> tuple[Decision, dict]:
+def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str, float]],
+                    blocked: dict[str, str] | None = None) -> tuple[Decision, dict]:
     """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
     for ``decisions.json`` (features, door features per hinge side, scores, the runner-up, the
     margin and the confidence over the hypotheses its evidence allows: :func:`margin_confidence`,
-    :func:`missing_evidence`; ``excluded``: the others and why)."""
+    :func:`missing_evidence`; ``excluded``: the others and why). ``blocked``: hypotheses the
+    interaction test rules out ({hypothesis: why};
+    :func:`~drawer_lib.articulation.interaction.blocked_hypotheses`); ``fixed`` always stays."""
     common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels)
     door = {side: door_features(ev, side) for side in ("left", "right")}
     all_scores = score(common, door, weights)
-    unseen = missing_evidence(common, cfg)
+    unseen = missing_evidence(common, cfg) | {k: v for k, v in (blocked or {}).items() if k != "fixed"}
     scores = {k: v for k, v in all_scores.items() if k not in unseen}
     best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
     runner_up, margin, conf = margin_confidence(scores, best)
     fam, _, hinge = best.partition("_")
-    dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up} {scores[runner_up]:.2f})",
-                   margin=margin, confidence=conf)
+    if runner_up == best:  # the evidence allows nothing else: no margin to speak of
+        dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (every other hypothesis excluded)",
+                       confidence=conf)
+        runner_up, margin_json = None, None
+    else:
+        dec = Decision(fam, hinge or None, f"score {scores[best]:.2f} (next best {runner_up} {scores[runner_up]:.2f})",
+                       margin=margin, confidence=conf)
+        margin_json = round(margin, 4)
     r4 = lambda d: {k: round(float(v), 4) for k, v in d.items()}  # noqa: E731
     return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()},
-                 "scores": r4(all_scores), "excluded": unseen, "runner_up": runner_up, "margin": round(margin, 4),
+                 "scores": r4(all_scores), "excluded": unseen, "runner_up": runner_up, "margin": margin_json,
                  "confidence": round(conf, 4)}
 
 

@@ -173,3 +173,37 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
         center = c + 0.5 * (pu0 + pu1) * u + 0.5 * (pv0 + pv1) * v
         out.append(Front(tuple(center.tolist()), front.normal, front.u, (float(pu1 - pu0), float(pv1 - pv0))))
     return out
+
+
+SIDES = ("left", "right", "bottom", "top")
+
+
+def border_lines(front: Front, rf: RectifiedFront, cfg: SplitConfig, slack: float, corner: float = 0.02
+                 ) -> dict[str, float | None]:
+    """Per side of the rectangle (left, right, bottom, top), the fraction of its length (less
+    ``corner`` at each end) along which the rectified image shows a line or an edge
+    (:func:`line_cells` over the whole grid, margin included) within ``slack`` m of the side:
+    the gap that runs round a real front. None for a side no view saw."""
+    uu, vv = rf.uv()
+    w, h = front.size
+    gray = rf.rgb.mean(axis=2)
+    seen = np.isfinite(gray)
+    out: dict[str, float | None] = dict.fromkeys(SIDES)
+    if not seen.any():
+        return out
+    gray = np.where(seen, gray, np.nanmedian(gray))
+    iu, iv = line_cells(gray, cfg.step, cfg.contrast, cfg.texture_k)
+    u, v = uu[0], vv[:, 0]
+    along_v = (np.abs(v) <= h / 2 - corner)
+    along_u = (np.abs(u) <= w / 2 - corner)
+    for side, at, lines, across in (("left", -w / 2, iu, along_v), ("right", w / 2, iu, along_v),
+                                    ("bottom", -h / 2, iv, along_u), ("top", h / 2, iv, along_u)):
+        if side in ("left", "right"):
+            near = np.abs(u - at) <= slack
+            hit, ok = lines[:, near].any(axis=1)[across], seen[:, near].any(axis=1)[across]
+        else:
+            near = np.abs(v - at) <= slack
+            hit, ok = lines[near, :].any(axis=0)[across], seen[near, :].any(axis=0)[across]
+        if ok.sum() >= 3:
+            out[side] = float(hit[ok].mean())
+    return out

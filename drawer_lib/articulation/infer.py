@@ -23,9 +23,10 @@ from drawer_lib.articulation.fronts import (
     share_edges,
 )
 from drawer_lib.articulation.handles import colour_handle, front_handles
+from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, interaction_evidence
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
-from drawer_lib.articulation.probes import carcass_depth, rail_extent, rail_run
-from drawer_lib.articulation.gaps import split_front
+from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_extent, rail_run
+from drawer_lib.articulation.gaps import border_lines, split_front
 from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts
 from drawer_lib.articulation.scoring import Evidence
 from drawer_lib.articulation.vocab import Decision
@@ -131,9 +132,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     pt_normal = np.asarray(mesh.face_normals)[pt_face]
     edge = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
     rc = cfg.rectify
-    image_cells, colour = None, None
+    image_cells, colour, rfs = None, None, None
     if rc.enabled and views and any(v.handles is not None for v in views):
-        detected = [np.array([v.stem in {st for st, _ in s.matched} for v in views]) for s, _, _ in fits]
+        detected = [np.isin([v.stem for v in views], [st for st, _ in s.matched]) for s, _, _ in fits]
         rfs, cells, rates = rectify_fronts(fronts, views, rc, detected)
         image_cells = (cells, rates, 1.5 * rc.res, rc.min_cells)
         if rc.colour_handles and any(v.image is not None for v in views):
@@ -147,18 +148,35 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     floor_z = float(np.percentile(np.asarray(mesh.vertices)[:, 2], 1.0)) if len(mesh.vertices) else 0.0
     neighbours = front_neighbours(fronts, max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap),
                                   cfg.handles.stacked_plane_tol)
+    obstacles = Obstacles.of(mesh_pts) if cfg.interaction.enabled and len(mesh_pts) else None
     counts: dict[str, int] = {}
+    ff = cfg.false_fronts
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
         terms = {}
+        if rfs is not None and ff.enabled and rfs[k].rgb is not None:
+            border = {"lines": border_lines(fr, rfs[k], cfg.split, ff.line_slack),
+                      "flush": flush_sides(fr, mesh_pts, tuple(ff.ring), ff.flush_tol, ff.min_points)}
+            terms["border"] = {kk: {side: None if x is None else round(x, 3) for side, x in vv.items()}
+                               for kk, vv in border.items()}
+            why = world_fixed(border, h, ff, neighbours[k])
+            if why is not None:
+                report.append({"segment": s.id, "family": "none", "reason": why, "front": fr.to_json(), **info,
+                               **terms})
+                continue
         if h is None and s.support < cfg.types.min_support:
             dec = Decision("fixed", reason=f"no handle, matched in {s.support} < {cfg.types.min_support} views")
         elif cfg.types.rule == "score":
+            blocked = None
+            if obstacles is not None:
+                terms["interaction"] = interaction_evidence(fr, obstacles, cfg.joints, cfg.interaction, carcass)
+                blocked = blocked_hypotheses(terms["interaction"], cfg.interaction)
             ev = Evidence(handle=h, size=fr.size, z_mid=float(fr.center[2]) - floor_z, stacked=neighbours[k][0],
                           beside_left=neighbours[k][1], beside_right=neighbours[k][2], partner=k in partner,
                           rail=rail_extent(fr, mesh_pts, pt_normal), carcass=carcass, labels=s.labels,
                           support=s.support)
-            dec, terms = decide_by_score(ev, cfg.types, weights)
+            dec, score_terms = decide_by_score(ev, cfg.types, weights, blocked)
+            terms |= score_terms
         elif k in partner:
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
@@ -176,7 +194,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         counts[dec.family] = counts.get(dec.family, 0) + 1
         extra = {"family": dec.family, "segment": s.id}
         if dec.confidence is not None:
-            extra |= {"confidence": round(dec.confidence, 4), "margin": round(dec.margin, 4), "low_margin": low}
+            extra |= {"confidence": round(dec.confidence, 4), "low_margin": low}
+            if dec.margin is not None:
+                extra["margin"] = round(dec.margin, 4)
         pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         side = (slide_side(fr, mesh_pts, h, cfg.joints, rail_run(fr, mesh_pts, pt_normal))
                 if dec.family == "sliding" and pair is None else None)
@@ -184,6 +204,27 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                                side))
         row["part"] = pid
     return parts, report
+
+
+def world_fixed(border: dict, handle, cfg, neighbours: tuple[int, bool, bool] = (0, False, False)) -> str | None:
+    """Why a front is a world-fixed false front (:class:`~drawer_lib.articulation.config.FalseFrontsConfig`),
+    or None. ``border``: {"lines": :func:`~drawer_lib.articulation.gaps.border_lines`, "flush":
+    :func:`~drawer_lib.articulation.probes.flush_sides`}; ``handle``: its handle or None;
+    ``neighbours``: :func:`front_neighbours`' (a front sharing an edge with other fronts is in
+    a run of fronts, whose gaps the images may not resolve: kept)."""
+    if handle is not None and handle.source != "colour":
+        return None
+    if neighbours[0] > 0 or neighbours[1] or neighbours[2]:
+        return None
+    lines = [x for x in border["lines"].values() if x is not None]
+    if not lines or max(lines) >= cfg.line_coverage:
+        return None
+    flush = [side for side, x in border["flush"].items() if x is not None and x >= cfg.flush_frac]
+    if len(flush) < cfg.min_flush_sides:
+        return None
+    return (f"a false front fixed in the world: no gap line round it (at most {max(lines):.0%} of a side), "
+            f"the surface runs on flush beyond {len(flush)} sides ({', '.join(flush)})"
+            + ("" if handle is None else ", its handle only read off colours"))
 
 
 def front_neighbours(fronts: list[Front], max_gap: float, plane_tol: float) -> list[tuple[int, bool, bool]]:

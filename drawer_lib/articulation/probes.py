@@ -91,3 +91,21 @@ def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06)
         if run[1] - run[0] >= 0.9 * 2 * hw and (best is None or run[1] - run[0] > best[1] - best[0]):
             best = run
     return best
+
+
+def flush_sides(front: Front, points: np.ndarray, ring: tuple[float, float], tol: float, min_points: int
+                ) -> dict[str, float | None]:
+    """Per side of the front's rectangle (left, right, bottom, top), the fraction of the mesh
+    ``points`` [P, 3] in the band ``ring`` = (from, to) m beyond that side (within the side's
+    span) that lie within ``tol`` of the front's plane: 1 where the surface runs on flush (a
+    wall, a coplanar neighbour), low where it steps (a counter, a plinth, a cabinet's underside,
+    open space). None for a side with fewer than ``min_points`` points there."""
+    rel = np.asarray(points, np.float64) - np.asarray(front.center)
+    a, b, z = rel @ np.asarray(front.u), rel @ front.v, rel @ np.asarray(front.normal)
+    w, h = front.size
+    out: dict[str, float | None] = {}
+    for side, along, span, half in (("left", -a, np.abs(b) <= h / 2, w / 2), ("right", a, np.abs(b) <= h / 2, w / 2),
+                                    ("bottom", -b, np.abs(a) <= w / 2, h / 2), ("top", b, np.abs(a) <= w / 2, h / 2)):
+        sel = span & (along >= half + ring[0]) & (along <= half + ring[1]) & (np.abs(z) < 0.25)
+        out[side] = float((np.abs(z[sel]) <= tol).mean()) if sel.sum() >= min_points else None
+    return out

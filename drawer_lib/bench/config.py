@@ -14,11 +14,14 @@ GEOMETRY_KEYS = ("chamfer_l1", "fscore_1cm", "fscore_2cm")  # a kitchen's mesh a
 class FitConfig:
     """The fit of the decision weights (:mod:`drawer_lib.bench.fit`): the L2 penalties tried
     (``lambdas``), ``folds`` of leave-kitchens-out cross-validation, and ``min_examples``:
-    a hypothesis with fewer train fronts gets only its bias fitted (the rest: the prior)."""
+    a hypothesis with fewer train fronts gets only its bias fitted (the rest: the prior).
+    ``select``: ``one_se`` (the largest penalty whose CV accuracy is within one standard error
+    of the best: differences the folds cannot resolve do not pick a looser model) or ``best``."""
 
     lambdas: list[float] = field(default_factory=lambda: [1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1])
     folds: int = 5
     min_examples: int = 10
+    select: str = "one_se"
 
     def __post_init__(self):
         if not self.lambdas or any(not lam >= 0 for lam in self.lambdas):
@@ -27,6 +30,8 @@ class FitConfig:
             raise ConfigError(f"bench.fit.folds = {self.folds} must be >= 2")
         if self.min_examples < 0:
             raise ConfigError(f"bench.fit.min_examples = {self.min_examples} must be >= 0")
+        if self.select not in ("one_se", "best"):
+            raise ConfigError(f"bench.fit.select = {self.select!r} must be one_se or best")
 
 
 @dataclass(frozen=True)

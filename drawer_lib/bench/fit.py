@@ -174,11 +174,25 @@ class FitResult:
                 "confusion": {"hypotheses": list(HYPOTHESES), "rows_gt_cols_pred": self.confusion}}
 
 
+def select_penalty(cv: Sequence[tuple[float, float]], n: int, rule: str = "one_se") -> float:
+    """The penalty of ``cv`` = [(lambda, CV accuracy over ``n`` fronts)]: ``best``: the highest
+    accuracy (ties: the larger penalty); ``one_se``: the largest penalty whose accuracy is within
+    one binomial standard error sqrt(a (1 - a) / n) of the best accuracy a."""
+    best_lam, best_acc = max(reversed(sorted(cv)), key=lambda t: t[1])
+    if rule == "best":
+        return best_lam
+    if rule != "one_se":
+        raise ValueError(f"select_penalty: rule {rule!r} is not one_se or best")
+    se = float(np.sqrt(best_acc * (1.0 - best_acc) / max(n, 1)))
+    return max(lam for lam, acc in cv if acc >= best_acc - se - 1e-12)
+
+
 def fit_decisions(rows: Sequence[Row], prior: dict[str, dict[str, float]], lambdas: Sequence[float], folds: int,
-                  min_examples: int, log: Callable[[int, float, float], None] | None = None) -> FitResult:
+                  min_examples: int, log: Callable[[int, float, float], None] | None = None,
+                  select: str = "one_se") -> FitResult:
     """Choose the penalty by leave-kitchens-out cross-validation (kitchen i of the sorted names
-    in fold i mod ``folds``; ties go to the larger penalty), then fit all ``rows`` with it.
-    ``log(i, lam, accuracy)`` after each penalty."""
+    in fold i mod ``folds``; :func:`select_penalty` with rule ``select``), then fit all
+    ``rows`` with it. ``log(i, lam, accuracy)`` after each penalty."""
     if not rows:
         raise InputError("fit_decisions: no labelled fronts with features in the train kitchens")
     if folds < 2 or not lambdas:
@@ -199,13 +213,13 @@ def fit_decisions(rows: Sequence[Row], prior: dict[str, dict[str, float]], lambd
         cv.append((float(lam), correct / len(y)))
         if log is not None:
             log(i, float(lam), cv[-1][1])
-    best = max(reversed(sorted(cv)), key=lambda t: t[1])  # the largest penalty among the best
-    W = fit(Xc, Xd, y, best[0], prior, min_examples)
+    lam = select_penalty(cv, len(y), select)
+    W = fit(Xc, Xd, y, lam, prior, min_examples)
     pred = scores(W, Xc, Xd).argmax(-1)
     conf = np.zeros((len(HYPOTHESES), len(HYPOTHESES)), int)
     for t, p in zip(y.tolist(), pred.tolist()):
         conf[t, p] += 1
-    return FitResult(as_dict(W), best[0], cv, float((pred == y).double().mean()), conf.tolist(),
+    return FitResult(as_dict(W), lam, cv, float((pred == y).double().mean()), conf.tolist(),
                      {h: int((y == i).sum()) for i, h in enumerate(HYPOTHESES)}, kitchens)
 
 
@@ -221,12 +235,14 @@ def run_fit(cfg: BenchConfig, ac: ArticulateConfig, bench: BenchPaths, run: Stag
         rows += labelled_fronts(kp.scene, kp.file("articulate", "decisions"), gt)
     curve = run.curve(["lambda", "cv_accuracy"], name=bench_name("cv"))
     res = fit_decisions(rows, ac.types.prior, cfg.fit.lambdas, cfg.fit.folds, cfg.fit.min_examples,
-                        log=lambda i, lam, acc: curve.log(i, **{"lambda": lam, "cv_accuracy": acc}))
+                        log=lambda i, lam, acc: curve.log(i, **{"lambda": lam, "cv_accuracy": acc}),
+                        select=cfg.fit.select)
     rec = res.record()
     write_weights(run.dir / bench_name("weights"), res.weights, rec)
     cases = run_cases(ac, res.weights)
     write_json(run.dir / bench_name("cases"), cases)
-    return {"lambda": res.lam, "cv_accuracy": max(a for _, a in res.cv), "train_accuracy": res.train_accuracy,
+    return {"lambda": res.lam, "cv_accuracy": dict(res.cv)[res.lam], "cv_accuracy_best": max(a for _, a in res.cv),
+            "train_accuracy": res.train_accuracy,
             "n_fronts": rec["n_fronts"], "n_kitchens": len(res.kitchens),
             **{f"n_{h}": n for h, n in res.counts.items()},
             "cases_passed": sum(c["passed"] for c in cases), "cases_total": len(cases)}

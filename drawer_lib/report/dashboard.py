@@ -292,7 +292,7 @@ def _low_margin(data: ReportData) -> Table:
     decisions a small change of the evidence may flip (docs/formats.md, decisions.json)."""
     t = Table(["scene", "segment", "part", "decided", "runner-up", "margin (log-odds)", "confidence", "handle"], [])
     for sc in data.scenes:
-        for r in sorted((r for r in sc.decisions if r.get("low_margin")), key=lambda r: r["margin"]):
+        for r in sorted((r for r in sc.decisions if r.get("low_margin")), key=lambda r: r.get("margin") or 0.0):
             kind = r["family"] + (f" ({r['hinge']})" if r.get("hinge") else "")
             h = r.get("handle")
             t.rows.append([sc.name, str(r["segment"]), r.get("part", "– (fixed)"), kind, r.get("runner_up", "–"),

@@ -218,7 +218,7 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
             s += f"; rigid objects {m['n_rigid_matched']}/{m['n_rigid_gt']} found, precision {_f(m.get('rigid_precision'), '.2f')}"
         dp = sp.file("articulate", "decisions")
         dec = _read(dp).get("segments", []) if dp.is_file() else []
-        typed = [r for r in dec if "margin" in r]
+        typed = [r for r in dec if r.get("margin") is not None]
         if typed:
             low = [r for r in typed if r.get("low_margin")]
             s += (f"; {len(low)} of {len(typed)} typed fronts decided with a low margin (the report lists them), "

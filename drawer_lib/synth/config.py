@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from drawer_lib.errors import ConfigError
 
 BASE_TYPES = ("door", "double_door", "drawers", "drawer_door", "flap_down", "oven", "dishwasher")
-WALL_TYPES = ("door", "double_door", "flap_up", "flap_down", "sliding", "sliding_single")
+WALL_TYPES = ("door", "double_door", "flap_up", "flap_down", "sliding", "sliding_single", "glass_door", "glass_double")
 TALL_TYPES = ("split", "fridge1", "fridge2", "pantry")
 FIXED_TYPES = ("appliance", "sink")
 HANDLE_STYLES = ("bar", "knob", "edge", "small_knob", "recessed", "none")
@@ -183,8 +183,12 @@ class MonoConfig:
     Relative depth: the z-depth blurred by ``depth_blur_px``, multiplied by a smooth field
     1 + ``depth_warp`` * w(u, v) (low-frequency), with relative noise ``depth_noise``, then
     normalised per frame to [0, 1] (an unknown per-frame scale and shift). Normals: the true
-    camera-frame normals rotated by a smooth random field of ``normal_noise_deg`` and blurred.
-    ``exact`` turns off blur, warp and noise (the per-frame normalisation stays).
+    camera-frame normals rotated by a smooth random field of ``normal_noise_deg`` and blurred
+    by ``normal_blur_px`` (which also smears them across depth edges), with the structured
+    errors of real estimators: every normal of a frame rotated together by ``normal_bias_deg``
+    about a random axis (a per-frame tilt), and pulled toward facing the camera by
+    ``normal_frontal_pull`` of the way (estimators flatten slanted surfaces). ``exact`` turns
+    off blur, warp, bias and noise (the per-frame normalisation stays).
     """
 
     depth_enabled: bool = True
@@ -195,10 +199,15 @@ class MonoConfig:
     depth_noise: float = 0.005
     normal_noise_deg: float = 4.0
     normal_blur_px: float = 1.0
+    normal_bias_deg: float = 0.0
+    normal_frontal_pull: float = 0.0
 
     def __post_init__(self):
         _check(0 <= self.depth_warp < 0.5, f"mono.depth_warp = {self.depth_warp} must be in [0, 0.5)")
         _check(self.depth_noise >= 0 and self.normal_noise_deg >= 0, "mono noise must be >= 0")
+        _check(0 <= self.normal_bias_deg < 90, f"mono.normal_bias_deg = {self.normal_bias_deg} must be in [0, 90)")
+        _check(0 <= self.normal_frontal_pull < 1,
+               f"mono.normal_frontal_pull = {self.normal_frontal_pull} must be in [0, 1)")
 
 
 @dataclass(frozen=True)

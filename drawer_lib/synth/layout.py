@@ -498,17 +498,21 @@ def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
     mat = "front_wall"
     full = Rect(x0 + g / 2, x1 - g / 2, z0 + g / 2, z1 - g / 2, y)
 
-    def door(r: Rect, hinge: str):
+    def door(r: Rect, hinge: str, glass: bool = False):
         free = "right" if hinge == "left" else "left"
-        b.add_front("door", r, mat, hinge=hinge, limit=_revolute_limit(b), handle_where=f"bottom-{free}",
-                    handle_along="v", handle_len=0.128)
+        e = b.add_front("door", r, mat, hinge=hinge, limit=_revolute_limit(b), handle_where=f"bottom-{free}",
+                        handle_along="v", handle_len=0.128)
+        if glass:  # a glass pane in a 6 cm frame (a vitrine door)
+            fr = min(0.06, 0.25 * r.w, 0.25 * (r.z1 - r.z0))
+            e.pieces.append(Piece(box_between([r.x0 + fr, r.y_out - 0.001, r.z0 + fr], [r.x1 - fr, r.y_out + 0.002, r.z1 - fr]),
+                                  "glass", "front"))
 
-    if kind == "door":
-        door(full, "left" if b.rng.random() < 0.5 else "right")
-    elif kind == "double_door":
+    if kind in ("door", "glass_door"):
+        door(full, "left" if b.rng.random() < 0.5 else "right", kind == "glass_door")
+    elif kind in ("double_door", "glass_double"):
         left, right = _halves(full, g)
-        door(left, "left")
-        door(right, "right")
+        door(left, "left", kind == "glass_double")
+        door(right, "right", kind == "glass_double")
     elif kind in ("flap_up", "flap_down"):
         _flap(b, full, mat, "top" if kind == "flap_up" else "bottom")
     elif kind == "sliding":
@@ -699,7 +703,7 @@ def _sample_types(rng: np.random.Generator, n: int, weights: dict[str, float], r
 
 
 def _width(rng: np.random.Generator, L: LayoutConfig, kind: str) -> float:
-    if kind in ("double_door", "sink", "sliding", "sliding_single"):
+    if kind in ("double_door", "glass_double", "sink", "sliding", "sliding_single"):
         return float(rng.choice(L.double_widths))
     if kind in ("appliance", "oven", "dishwasher"):
         return 0.6

@@ -12,6 +12,7 @@ from scipy import ndimage
 
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera, Intrinsics, pixel_dirs
+from drawer_lib.geometry.rotations import axis_angle_to_matrix
 from drawer_lib.synth.config import DepthSensorConfig, DetectionsConfig, MonoConfig
 
 
@@ -116,6 +117,15 @@ def mono_normals(n_cam: np.ndarray, cfg: MonoConfig, rng: np.random.Generator) -
         n = n + p
         if cfg.normal_blur_px > 0:
             n = np.stack([ndimage.gaussian_filter(n[..., c], cfg.normal_blur_px) for c in range(3)], -1)
+        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-9)
+        if cfg.normal_frontal_pull > 0:  # toward facing the camera (OpenCV camera: -z)
+            n = (1.0 - cfg.normal_frontal_pull) * n + cfg.normal_frontal_pull * np.array([0.0, 0.0, -1.0])
+            n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-9)
+        if cfg.normal_bias_deg > 0:  # one rotation for the whole frame, drawn from a child
+            # generator: the frame's later draws (depth noise, detections) stay as they were
+            axis = rng.spawn(1)[0].normal(size=3)
+            axis /= np.linalg.norm(axis)
+            n = n @ axis_angle_to_matrix(axis, float(np.deg2rad(cfg.normal_bias_deg))).T
     n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-9)
     return n.astype(np.float16)
 

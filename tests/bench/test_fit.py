@@ -118,6 +118,17 @@ def test_cross_validation_picks_the_penalty_and_is_deterministic():
         fd.fit_decisions([], prior_weights(), [1e-3], 3, 5)
 
 
+def test_the_penalty_within_one_standard_error_of_the_best_is_the_largest():
+    cv = [(1e-5, 0.778), (3e-5, 0.797), (1e-4, 0.802), (3e-4, 0.792), (1e-3, 0.773), (1e-2, 0.749)]
+    assert fd.select_penalty(cv, 207, "best") == 1e-4
+    # se = sqrt(0.802 * 0.198 / 207) = 0.0277: 0.792 is within it, 0.773 is not
+    assert fd.select_penalty(cv, 207, "one_se") == 3e-4
+    assert fd.select_penalty(cv, 10**6, "one_se") == 1e-4  # many fronts: a tiny se, the best
+    assert fd.select_penalty([(1e-3, 0.9), (1e-2, 0.9)], 50, "best") == 1e-2  # ties: the larger
+    with pytest.raises(ValueError, match="rule"):
+        fd.select_penalty(cv, 207, "median")
+
+
 def test_labelled_fronts_read_decisions_and_skip_what_has_no_label(tmp_path):
     gt = PartsFile((Part("w0", "prismatic", Axis((0.25, -0.6, 0.45), N), (0, 0.4), front(0.25, 0.45)),),
                    (IgnoreBox("a0", ((3.0, -0.7, 0.0), (3.5, -0.5, 0.9)), front(3.25, 0.45), 9),))

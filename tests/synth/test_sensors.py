@@ -2,11 +2,13 @@
 perfect settings are exact; degenerate frames are handled."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
+from drawer_lib.errors import ConfigError
 from drawer_lib.geometry.camera import Camera, Intrinsics, pixel_dirs
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import load_capture
@@ -27,6 +29,8 @@ from drawer_lib.synth.sensors import (
 )
 
 K = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def plane(z0=2.0, H=48, W=64):
@@ -100,6 +104,39 @@ def test_mono_normals_unit_and_close(rng):
     np.testing.assert_allclose(np.linalg.norm(noisy, axis=-1), 1.0, atol=2e-3)
     ang = np.rad2deg(np.arccos(np.clip(np.sum(noisy * n, -1), -1, 1)))
     assert 0.3 < ang.mean() < 6.0
+
+
+def test_the_shipped_mono_normals_are_as_wrong_as_a_real_estimator(rng):
+    """conf/capture/mono/noisy.yaml on a room corner (a floor seen obliquely, two walls): a mean
+    angular error of 10-20 deg, structured (a whole frame tilted together), not pixel noise."""
+    import yaml
+
+    from drawer_lib.config.typed import to_typed
+
+    cfg = to_typed(MonoConfig, yaml.safe_load(open(ROOT / "conf/capture/mono/noisy.yaml")), "mono")
+    H, W = 120, 160
+    yy, xx = np.mgrid[0:H, 0:W]
+    n = np.zeros((H, W, 3))
+    n[...] = [0.0, 0.0, -1.0]
+    n[yy > 80] = [0.0, -0.8, -0.6]
+    n[(xx < 50) & (yy <= 80)] = [0.7, 0.0, -0.714]
+    n[(xx > 110) & (yy <= 80)] = [-0.5, 0.0, -0.866]
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    errs, spread = [], []
+    for _ in range(12):
+        m = mono_normals(n, cfg, rng).astype(np.float64)
+        e = np.rad2deg(np.arccos(np.clip((m * n).sum(-1), -1, 1)))
+        errs.append(e.mean())
+        spread.append(np.percentile(e[:70, 60:100], 90) - np.percentile(e[:70, 60:100], 10))  # within one wall
+    assert 10.0 < np.mean(errs) < 20.0
+    assert np.median(spread) < np.mean(errs)  # the error of a plane is mostly shared, not per pixel
+    # the per-frame tilt comes from a child generator: the frame's later draws are unchanged
+    a, b = np.random.default_rng(3), np.random.default_rng(3)
+    mono_normals(n, cfg, a)
+    mono_normals(n, MonoConfig(normal_bias_deg=0.0), b)
+    assert a.random() == b.random()
+    with pytest.raises(ConfigError, match="normal_bias_deg"):
+        MonoConfig(normal_bias_deg=95.0)
 
 
 def _scene():
