@@ -15,7 +15,6 @@ of kinds, the fit) and prints a table.
 """
 
 import argparse
-import copy
 import json
 import time
 from pathlib import Path
@@ -72,7 +71,6 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
     p = yaml.safe_load((ROOT / "params.yaml").read_text())
-    p = copy.deepcopy(p)
     for s in a.set:
         override(p, s)
     cfg = to_typed(ArticulateConfig, p["articulate"], "articulate")

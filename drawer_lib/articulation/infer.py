@@ -12,7 +12,7 @@ from collections.abc import Callable
 import numpy as np
 import trimesh
 
-from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.config import ArticulateConfig, FalseFrontsConfig
 from drawer_lib.articulation.decide import decide_by_handle, decide_by_score
 from drawer_lib.articulation.fronts import (
     abutting_edges,
@@ -29,7 +29,7 @@ from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_exte
 from drawer_lib.articulation.gaps import border_lines, split_front
 from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts
 from drawer_lib.articulation.scoring import Evidence
-from drawer_lib.articulation.vocab import Decision
+from drawer_lib.articulation.vocab import Decision, Handle
 from drawer_lib.geometry.frames import UP
 from drawer_lib.io.parts import Front, Part
 from drawer_lib.perception.decompose import Segment
@@ -206,7 +206,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     return parts, report
 
 
-def world_fixed(border: dict, handle, cfg, neighbours: tuple[int, bool, bool] = (0, False, False)) -> str | None:
+def world_fixed(border: dict, handle: Handle | None, cfg: FalseFrontsConfig,
+                neighbours: tuple[int, bool, bool] = (0, False, False)) -> str | None:
     """Why a front is a world-fixed false front (:class:`~drawer_lib.articulation.config.FalseFrontsConfig`),
     or None. ``border``: {"lines": :func:`~drawer_lib.articulation.gaps.border_lines`, "flush":
     :func:`~drawer_lib.articulation.probes.flush_sides`}; ``handle``: its handle or None;

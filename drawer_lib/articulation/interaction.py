@@ -94,28 +94,27 @@ def scene_near(front: Front, obstacles: Obstacles, cfg: InteractionConfig, reach
     return cKDTree(near) if len(near) else None
 
 
-def sweep_clear(front: Front, hypothesis: str, obstacles: Obstacles, joints: JointsConfig, cfg: InteractionConfig,
-                carcass: float | None = None) -> float:
-    """The fraction (0 .. 1) of hypothesis ``hypothesis``'s motion the front's panel travels
-    before it comes within ``cfg.clearance`` of ``cfg.min_hits`` or more obstacle points other
-    than the front's own (1.0: the whole range is free; a stray mesh point is no wall). The
-    joint is the one the part would get (:func:`~drawer_lib.articulation.joints.make_part`: a
-    door or flap on its hinge to ``joints.revolute_limit_deg``, a drawer out along its normal by
-    its travel, its box reaching back as far: what of it comes out in front of the front's
-    plane; what stays behind is :func:`room_behind`'s); the motion is sampled so that no panel point
-    moves more than ``cfg.step`` between samples."""
-    if hypothesis in ("fixed", "sliding"):
+def sweep_reach(front: Front, joints: JointsConfig, carcass: float | None = None) -> float:
+    """A distance (m) from the front's centre that no panel sample of any moving hypothesis
+    leaves: a point p turned about an axis through a stays within |p - a| + |a - c| of the centre
+    c (the midpoint a of a hinge edge is at most max(size) / 2 from c, p at most the diagonal
+    from a); a drawer's box (reaching back as far as it travels) stays within half the
+    diagonal plus its travel."""
+    diag = float(np.hypot(*front.size))
+    travel = make_part("sweep", Decision("drawer"), front, joints, {}, carcass).limits[1]
+    return max(diag + max(front.size) / 2, diag / 2 + travel)
+
+
+def _sweep(front: Front, hypothesis: str, tree: cKDTree | None, joints: JointsConfig, cfg: InteractionConfig,
+           carcass: float | None) -> float:
+    """:func:`sweep_clear` against ``tree`` (:func:`scene_near`, covering :func:`sweep_reach`)."""
+    if hypothesis in ("fixed", "sliding") or tree is None:
         return 1.0
     fam, _, hinge = hypothesis.partition("_")
     part = make_part("sweep", Decision(fam, hinge or None), front, joints, {}, carcass)
     lo, hi = part.limits
     revolute = part.kind == "revolute"
-    depth = 0.0 if revolute else hi
-    pts = panel_samples(front, cfg.spacing, cfg.inset, depth)
-    reach = float(np.hypot(*front.size)) + (0.0 if revolute else hi)
-    tree = scene_near(front, obstacles, cfg, reach)
-    if tree is None:
-        return 1.0
+    pts = panel_samples(front, cfg.spacing, cfg.inset, 0.0 if revolute else hi)
     per_q = max(front.size) if revolute else 1.0  # metres the farthest panel point moves per unit of q
     n_steps = max(int(np.ceil((hi - lo) * per_q / cfg.step)), 1)
     origin, direction = np.asarray(part.axis.origin), np.asarray(part.axis.direction)
@@ -129,6 +128,20 @@ def sweep_clear(front: Front, hypothesis: str, obstacles: Obstacles, joints: Joi
         if int(np.isfinite(d).sum()) >= cfg.min_hits:
             return (i - 1) / n_steps
     return 1.0
+
+
+def sweep_clear(front: Front, hypothesis: str, obstacles: Obstacles, joints: JointsConfig, cfg: InteractionConfig,
+                carcass: float | None = None) -> float:
+    """The fraction (0 .. 1) of hypothesis ``hypothesis``'s motion the front's panel travels
+    before it comes within ``cfg.clearance`` of ``cfg.min_hits`` or more obstacle points other
+    than the front's own (1.0: the whole range is free; a stray mesh point is no wall). The
+    joint is the one the part would get (:func:`~drawer_lib.articulation.joints.make_part`: a
+    door or flap on its hinge to ``joints.revolute_limit_deg``, a drawer out along its normal by
+    its travel, its box reaching back as far: what of it comes out in front of the front's
+    plane; what stays behind is :func:`room_behind`'s); the motion is sampled so that no panel point
+    moves more than ``cfg.step`` between samples."""
+    tree = scene_near(front, obstacles, cfg, sweep_reach(front, joints, carcass))
+    return _sweep(front, hypothesis, tree, joints, cfg, carcass)
 
 
 def room_behind(front: Front, obstacles: Obstacles, cfg: InteractionConfig) -> float:
@@ -150,8 +163,8 @@ def interaction_evidence(front: Front, obstacles: Obstacles, joints: JointsConfi
     """{"clear": {hypothesis: fraction of its motion that is free}, "room": room behind (m)}
     for every hypothesis that moves (:data:`~drawer_lib.articulation.vocab.HYPOTHESES` but
     ``fixed`` and ``sliding``)."""
-    clear = {h: round(sweep_clear(front, h, obstacles, joints, cfg, carcass), 4)
-             for h in HYPOTHESES if h not in ("fixed", "sliding")}
+    tree = scene_near(front, obstacles, cfg, sweep_reach(front, joints, carcass))  # one per front
+    clear = {h: round(_sweep(front, h, tree, joints, cfg, carcass), 4) for h in HYPOTHESES if h not in ("fixed", "sliding")}
     return {"clear": clear, "room": round(room_behind(front, obstacles, cfg), 4)}
 
 

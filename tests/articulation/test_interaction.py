@@ -16,6 +16,7 @@ from drawer_lib.articulation.interaction import (
     panel_samples,
     room_behind,
     sweep_clear,
+    sweep_reach,
 )
 from drawer_lib.articulation.scoring import Evidence
 from drawer_lib.articulation.vocab import Handle
@@ -122,6 +123,25 @@ def test_the_score_rule_drops_what_the_interaction_test_blocks():
                                                            "fixed": "never excluded"})
     assert (dec.family, dec.hinge) != ("door", "left") and "door_left" in terms["excluded"]
     assert "fixed" not in terms["excluded"]
+
+
+@pytest.mark.parametrize("size", [(0.6, 0.7), (1.0, 0.1), (0.1, 1.0)])
+def test_no_swept_sample_leaves_the_reach_the_scene_is_cropped_to(size):
+    """A wide, low door swung to 90 deg reaches farther from the centre than its diagonal."""
+    from drawer_lib.articulation.joints import make_part
+    from drawer_lib.articulation.vocab import Decision
+    from drawer_lib.geometry.joints import apply_transform, joint_transform
+
+    f = Front((0.0, 0.0, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), size)
+    reach = sweep_reach(f, JOINTS)
+    for hyp in ("drawer", "door_left", "door_right", "flap_top", "flap_bottom"):
+        fam, _, hinge = hyp.partition("_")
+        part = make_part("t", Decision(fam, hinge or None), f, JOINTS, {})
+        pts = panel_samples(f, 0.02, 0.0, part.limits[1] if part.kind == "prismatic" else 0.0)
+        for q in np.linspace(*part.limits, 7):
+            moved = apply_transform(joint_transform(part.kind, np.asarray(part.axis.origin),
+                                                    np.asarray(part.axis.direction), q), pts)
+            assert np.linalg.norm(moved - np.asarray(f.center), axis=1).max() <= reach + 1e-9
 
 
 def test_obstacles_must_be_finite_and_config_is_checked():
