@@ -62,7 +62,10 @@ class HandlesConfig:
     when the longer is below ``round_aspect`` x the shorter + ``round_slack``.
     ``stacked_pulls``: a horizontal pull in the gap between two stacked fronts (coplanar within
     ``stacked_plane_tol``, overlapping over ``stacked_min_overlap``) that both take goes to the
-    lower one (:func:`~drawer_lib.articulation.handles.resolve_stacked_pulls`)."""
+    lower one (:func:`~drawer_lib.articulation.handles.resolve_stacked_pulls`).
+    ``split_pulls``: one pull whose points two fronts took (candidates within ``max_gap`` of
+    each other) goes whole to the front it reaches deeper into, when deeper by at least
+    ``split_margin`` m (:func:`~drawer_lib.articulation.handles.resolve_split_pulls`)."""
 
     min: float = 0.008
     max: float = 0.08
@@ -84,6 +87,8 @@ class HandlesConfig:
     stacked_pulls: bool = True
     stacked_plane_tol: float = 0.02
     stacked_min_overlap: float = 0.5
+    split_pulls: bool = True
+    split_margin: float = 0.01
     sample_per_m2: float = 20000.0
 
     def __post_init__(self):
@@ -93,6 +98,8 @@ class HandlesConfig:
             raise ConfigError(f"articulate.handles.evidence = {self.evidence!r} must be count or view_rate")
         if self.min_hits < 1 or self.geo_min_points < 1 or self.mask_min_points < 1:
             raise ConfigError("articulate.handles: min_hits, geo_min_points and mask_min_points must be >= 1")
+        if not self.split_margin >= 0:
+            raise ConfigError(f"articulate.handles.split_margin = {self.split_margin} must be >= 0 (m)")
 
 
 @dataclass(frozen=True)

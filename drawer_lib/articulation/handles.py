@@ -34,6 +34,17 @@ def handle_clusters(points: Float[np.ndarray, "N 3"], radius: float, min_points:
     return [np.nonzero(lab == k)[0] for k in np.unique(lab) if (lab == k).sum() >= min_points]
 
 
+def rect_distance(front: Front, points: Float[np.ndarray, "N 3"]) -> np.ndarray:
+    """Signed in-plane distance [N] (m) of ``points`` from the front's rectangle: positive
+    outside (to the nearest point of the rectangle), negative inside (minus the distance to the
+    nearest edge)."""
+    rel = points - np.asarray(front.center)
+    eu = np.abs(rel @ np.asarray(front.u)) - front.size[0] / 2
+    ev = np.abs(rel @ front.v) - front.size[1] / 2
+    inside = (eu <= 0) & (ev <= 0)
+    return np.where(inside, np.maximum(eu, ev), np.hypot(np.maximum(eu, 0), np.maximum(ev, 0)))
+
+
 def handle_candidates(fronts: list[Front], points: Float[np.ndarray, "N 3"], cfg: HandlesConfig, radius: float,
                       min_points: int, weights: np.ndarray | None = None) -> Candidates:
     """Per front, its handle candidates [(points [M, 3], total weight)], heaviest first: every
@@ -52,12 +63,8 @@ def handle_candidates(fronts: list[Front], points: Float[np.ndarray, "N 3"], cfg
     best = np.full(len(points), np.inf)
     owner = np.full(len(points), -1)
     for k, f in enumerate(fronts):
-        rel = points - np.asarray(f.center)
-        eu = np.abs(rel @ np.asarray(f.u)) - f.size[0] / 2
-        ev = np.abs(rel @ f.v) - f.size[1] / 2
-        h = rel @ np.asarray(f.normal)
-        inside = (eu <= 0) & (ev <= 0)
-        d = np.where(inside, np.maximum(eu, ev), np.hypot(np.maximum(eu, 0), np.maximum(ev, 0)))
+        d = rect_distance(f, points)
+        h = (points - np.asarray(f.center)) @ np.asarray(f.normal)
         ok = (h >= -cfg.below_plane) & (h <= cfg.max) & (d <= cfg.max_gap) & (d < best)
         best[ok] = d[ok]
         owner[ok] = k
@@ -70,6 +77,53 @@ def handle_candidates(fronts: list[Front], points: Float[np.ndarray, "N 3"], cfg
         cl.sort(key=lambda i: (-float(w[i].sum()), -len(i)))
         out[k] = [(pts[i], float(w[i].sum())) for i in cl]
     return out
+
+
+def resolve_split_pulls(fronts: list[Front], cands: Candidates, link: float, margin: float,
+                        reach_percentile: float = 90.0) -> tuple[Candidates, list[tuple[int, int, float]]]:
+    """One pull that two fronts share, given whole to one of them.
+
+    A pull by the edge between two fronts (a sliding panel's bar by its leading edge beside a
+    flap, a door's knob by the gap) is read on both: the rectified masks of each front reach
+    ``margin`` beyond its rectangle and every point goes to the rectangle it lies deepest in,
+    so a pull near the gap splits between the two, and the front that is not its own takes a
+    bar "at its very edge" (a hinge side, a kind) from a neighbour's pull. Two candidates of
+    different fronts whose points come within ``link`` (m) of each other are one pull; it goes
+    whole to the front its points reach deeper into (the ``reach_percentile`` of their depth
+    inside each rectangle, m), when deeper by at least ``margin`` (m); otherwise both keep their
+    share (a pull in the gap between stacked fronts is :func:`resolve_stacked_pulls`' case).
+    Repeated until nothing moves. Returns (the candidates, heaviest first per front, [(front
+    that gave up its share, front that took the pull, reach difference m)])."""
+    from scipy.spatial import cKDTree
+
+    out: Candidates = [list(c) for c in cands]
+    moves: list[tuple[int, int, float]] = []
+    moved = True
+    while moved:
+        moved = False
+        for a in range(len(fronts)):
+            for b in range(len(fronts)):
+                if a == b or not out[a] or not out[b]:
+                    continue
+                for i, (pa, wa) in enumerate(out[a]):
+                    tree = cKDTree(pa)
+                    j = next((j for j, (pb, _) in enumerate(out[b])
+                              if np.isfinite(tree.query(pb, distance_upper_bound=link)[0]).any()), None)
+                    if j is None:
+                        continue
+                    pb, wb = out[b][j]
+                    union = np.concatenate([pa, pb])
+                    reach_a = float(np.percentile(-rect_distance(fronts[a], union), reach_percentile))
+                    reach_b = float(np.percentile(-rect_distance(fronts[b], union), reach_percentile))
+                    if reach_b - reach_a < margin:
+                        continue
+                    del out[a][i]
+                    out[b][j] = (union, wa + wb)
+                    out[b].sort(key=lambda c: (-c[1], -len(c[0])))
+                    moves.append((a, b, round(reach_b - reach_a, 4)))
+                    moved = True
+                    break
+    return out, moves
 
 
 def heaviest(cands: Candidates) -> list[np.ndarray | None]:
@@ -215,9 +269,10 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
                   edge_length: float, cfg: HandlesConfig, edge_frac: float, stack_gap: float,
                   handle_hits: np.ndarray | None = None, face_views: np.ndarray | None = None,
                   image_cells: tuple[np.ndarray, np.ndarray, float, int] | None = None,
-                  colour: list[np.ndarray | None] | None = None) -> tuple[list[Handle | None], list[tuple[int, int]]]:
-    """Each front's handle (or None) from both kinds of evidence, the masks' first; and the
-    stacked pulls resolved (:func:`resolve_stacked_pulls`, when ``cfg.stacked_pulls``).
+                  colour: list[np.ndarray | None] | None = None
+                  ) -> tuple[list[Handle | None], list[tuple[int, int, str]]]:
+    """Each front's handle (or None) from both kinds of evidence, the masks' first; the split
+    and the stacked pulls resolved (:func:`resolve_stacked_pulls`, when ``cfg.stacked_pulls``).
     ``mesh_pts`` / ``pt_normal`` [P, 3]: points sampled on the mesh and their normals;
     ``face_centers`` [F, 3]; ``edge_length``: the mesh's typical edge (m). The masks' evidence:
     ``image_cells`` = (points [M, 3], rates [M], link radius m, min points) of the rectified
@@ -226,7 +281,10 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
     each face, and ``face_views`` [F], in how many views each face is visible (needed by
     ``evidence: view_rate``; source ``masks``). ``colour[k]``: front k's handle read off its
     rectified colours (:func:`colour_handle`; source ``colour``), taken when the masks show none,
-    before the mesh's protrusions."""
+    before the mesh's protrusions. Returns (handle per front, [(front that gave up a mask
+    candidate, front that took it, why: a format string for the taker's segment id)]): a pull
+    split between side-by-side fronts (:func:`resolve_split_pulls`, ``cfg.split_pulls``) is
+    resolved first, then the stacked ones."""
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
     by_geo = heaviest(handle_candidates(fronts, geo_pts, cfg, cfg.geo_radius, cfg.geo_min_points))
@@ -237,17 +295,23 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
     else:
         mask_cands = _face_candidates(fronts, face_centers, edge_length, cfg, handle_hits, face_views)
         source = "masks"
+    split: list[tuple[int, int, float]] = []
+    if cfg.split_pulls:
+        mask_cands, split = resolve_split_pulls(fronts, mask_cands, cfg.max_gap, cfg.split_margin)
     if cfg.stacked_pulls:
         by_mask, gave_up = resolve_stacked_pulls(fronts, mask_cands, edge_frac, stack_gap, cfg.stacked_plane_tol,
                                                  cfg.stacked_min_overlap)
     else:
         by_mask, gave_up = heaviest(mask_cands), []
+    gave = ([(a, b, f"the pull it shared with segment {{}} reaches {100 * d:.1f} cm deeper into that front, "
+                    "which took it") for a, b, d in split]
+            + [(a, b, "the pull it shared with segment {} went there") for a, b in gave_up])
     by_colour = colour if colour is not None else [None] * len(fronts)
     handles = [describe_handle(f, m, source, cfg) if m is not None
                else describe_handle(f, c, "colour", cfg) if c is not None
                else describe_handle(f, g, "geometry", cfg)
                for f, g, m, c in zip(fronts, by_geo, by_mask, by_colour)]
-    return handles, gave_up
+    return handles, gave
 
 
 def _face_candidates(fronts: list[Front], face_centers: np.ndarray, edge_length: float, cfg: HandlesConfig,

@@ -181,8 +181,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
             dec = decide_by_handle(h, s.labels, cfg.types)
-        reason = dec.reason + "".join(f"; the pull it shared with segment {fits[hi][0].id} went there"
-                                      for lo, hi in gave_up if lo == k)
+        reason = dec.reason + "".join("; " + why.format(fits[hi][0].id) for lo, hi, why in gave_up if lo == k)
         low = dec.margin is not None and dec.margin < cfg.types.low_margin
         row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason, "low_margin": low,
                "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size],

@@ -10,7 +10,7 @@ from drawer_lib.articulation.config import ArticulateConfig, FrontsConfig, Handl
 from drawer_lib.articulation.estimators import get_estimator
 from drawer_lib.articulation.fronts import refine_with_masks, share_edges
 from drawer_lib.articulation.handles import (describe_handle, handle_candidates, handle_clusters, heaviest,
-                                             resolve_stacked_pulls)
+                                             rect_distance, resolve_split_pulls, resolve_stacked_pulls)
 from drawer_lib.articulation.infer import infer_parts
 from drawer_lib.articulation.decide import decide_by_handle
 from drawer_lib.errors import ConfigError, InputError
@@ -215,6 +215,55 @@ def test_a_pull_between_stacked_fronts_goes_to_the_lower_one():
     lone = handle_candidates([upper, lower], np.concatenate([smear, own_lower]), cfg, R, 3)
     got, gave_up = resolve_stacked_pulls([upper, lower], lone, tc.edge_frac, cfg.max_gap)
     assert gave_up == [] and got[0] is lone[0][0][0]
+
+
+def test_rect_distance_is_signed_and_exact_on_a_rectangle():
+    from drawer_lib.io.parts import Front
+
+    f = Front((0.0, 0.0, 1.0), (0, -1, 0), (1, 0, 0), (0.4, 0.2))  # x -0.2..0.2, z 0.9..1.1
+    pts = np.array([[0, 0, 1.0], [0.15, 0, 1.0], [0.3, 0, 1.0], [0.3, 0, 1.2], [0.2, 0, 1.1], [0, -0.5, 0.95]])
+    np.testing.assert_allclose(rect_distance(f, pts), [-0.1, -0.05, 0.1, np.hypot(0.1, 0.1), 0.0, -0.05], atol=1e-12)
+
+
+def test_a_pull_split_between_side_by_side_fronts_goes_whole_to_the_front_it_reaches_into():
+    """A vertical bar by the left edge of the right front (a sliding panel's pull beside a flap)
+    is read on both fronts' rectified masks; the cells in the gap and the left front's margin go
+    to the left front, which then holds "a vertical bar at its very right edge" (a door hinged
+    left). The pull reaches 2.5 cm into the right front and not into the left one: it goes to
+    the right front whole. Two knobs either side of a gap reach as far into each: both stay."""
+    from drawer_lib.io.parts import Front
+
+    left = Front((0.25, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.5, 0.7))    # x 0.00-0.50
+    right = Front((0.735, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.45, 0.7))  # x 0.51-0.96
+    def bar(x0, x1, z0, z1):  # rectified cells (4 mm) 2 cm in front of the plane
+        x, z = np.meshgrid(np.arange(x0, x1, 0.004), np.arange(z0, z1, 0.004))
+        return np.stack([x.ravel(), np.full(x.size, Y - 0.02), z.ravel()], -1)
+
+    pull = bar(0.4965, 0.535, 0.12, 0.3)
+    R = 0.006  # the linkage of rectified cells (1.5 x 4 mm)
+    cands = handle_candidates([left, right], pull, HC, R, 3)
+    assert cands[0] and cands[1]  # split at the gap's middle
+    h_left = describe_handle(left, heaviest(cands)[0], "images", HC)
+    assert h_left.a_u > 0.95 and h_left.orientation == "vertical"  # the left front's "own" bar at its edge
+    out, moves = resolve_split_pulls([left, right], cands, HC.max_gap, HC.split_margin)
+    assert out[0] == [] and len(out[1]) == 1 and len(out[1][0][0]) == len(pull)
+    assert [(a, b) for a, b, _ in moves] == [(0, 1)] and moves[0][2] >= HC.split_margin
+    assert describe_handle(right, out[1][0][0], "images", HC).a_u < 0.1
+    # with a margin above the reach difference nothing moves
+    same, none = resolve_split_pulls([left, right], cands, HC.max_gap, 0.05)
+    assert none == [] and [len(c) for c in same] == [len(c) for c in cands]
+    # two knobs 3 cm apart across the gap, 2 cm into each front: each keeps its own
+    knobs = np.concatenate([bar(0.47, 0.49, 0.4, 0.42), bar(0.52, 0.54, 0.4, 0.42)])
+    kc = handle_candidates([left, right], knobs, HC, 0.015, 3)
+    out, moves = resolve_split_pulls([left, right], kc, HC.max_gap, HC.split_margin)
+    assert moves == [] and [len(c) for c in out] == [1, 1]
+    # the same case through front_handles: the left front has no handle, the right one the bar
+    from drawer_lib.articulation.handles import front_handles
+
+    hs, gave = front_handles([left, right], np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), 0.02, HC,
+                             0.3, 0.03, image_cells=(pull, np.full(len(pull), 0.5), R, 3))
+    assert hs[0] is None and hs[1].a_u < 0.1 and [(a, b) for a, b, _ in gave] == [(0, 1)]
+    assert "deeper" in gave[0][2].format(7) and "segment 7" in gave[0][2].format(7)
 
 
 def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle():
