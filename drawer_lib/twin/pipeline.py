@@ -162,6 +162,7 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
                                    "gaussians": f"{gdir}/{b.id}.ply" if b.id in gauss else None,
                                    "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
                                    "interior": raw[b.id].get("interior", {}),
+                                   "grasp": raw[b.id].get("grasp"),
                                    "confidence": by_id[b.id].extra.get("confidence"),
                                    "low_margin": bool(by_id[b.id].extra.get("low_margin", False))})
     write_json(run.out("index"), twin_json)
