@@ -33,10 +33,19 @@ class RendersConfig:
 
 @dataclass(frozen=True)
 class TwinConfig:
-    """``check``: run the physical checks before writing (a failing check is an error naming the
-    part); ``renders``: the opened-state renders; ``recording``: the shareable browser recording
-    of every part opened in turn (``open_parts.html``)."""
+    """``check``: run the physical checks; ``on_check_failure``: ``report`` writes the twin all the
+    same and lists every failing part and check in ``checks.json``, ``twin.json`` (per part
+    ``checks``) and the metrics (a part a few millimetres into the carcass must not cost the
+    whole twin), ``error`` stops with the error naming them and writes nothing (a simulation
+    that goes non-finite stops either way); ``renders``: the opened-state renders;
+    ``recording``: the shareable browser recording of every part opened in turn
+    (``open_parts.html``)."""
 
     check: bool = True
+    on_check_failure: str = "report"
     renders: RendersConfig = field(default_factory=RendersConfig)
     recording: RecordConfig = field(default_factory=RecordConfig)
+
+    def __post_init__(self):
+        if self.on_check_failure not in ("report", "error"):
+            raise ConfigError(f"twin.on_check_failure = {self.on_check_failure!r} must be report or error")

@@ -6,7 +6,9 @@
 2. ``scene.xml`` (+ ``assets/``) built with ``MjSpec``, compiled and checked before anything is
    written (every drive opens its part, a person's pull opens it, the limits hold, nothing
    penetrates, rigid objects rest, no NaN or MuJoCo warning; :func:`drawer_lib.sim.checks.
-   check_twin`) — a failing check is an error naming the part;
+   check_twin`) — a failing check is reported per part (``checks.json`` ``failures``,
+   ``twin.json`` ``checks``) and the twin still written (``on_check_failure: error`` stops
+   instead); a simulation that goes non-finite stops the stage;
 3. ``urdf/scene.urdf`` and ``scene.usda``;
 4. ``gaussians/static.ply`` and ``gaussians/<id>.ply`` (INRIA layout, world frame at q = 0) and
    ``visual.glb`` (the visual meshes, one node per body); ``twin.json`` (bodies, their
@@ -33,7 +35,7 @@ from PIL import Image
 
 from drawer_lib.capture.config import SceneConfig
 from drawer_lib.complete.io import STATIC, read_complete
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, TwinCheckError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json, write_rgb
 from drawer_lib.io.parts import Part, read_parts
@@ -125,10 +127,24 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     compile_spec(spec)
     m["build_s"] = round(time.perf_counter() - t0, 3)
     write_mjcf(spec, out)
+    failed: dict[str, list[str]] = {}
     if cfg.check:
         t0 = time.perf_counter()
-        rep = check_twin(run.out("mjcf"), model, sim)
+        try:
+            rep = check_twin(run.out("mjcf"), model, sim)
+            rep["failures"] = []
+        except TwinCheckError as e:
+            if cfg.on_check_failure == "error":
+                raise
+            rep = {**(e.report or {}), "failures": e.failures}
+            for f in e.failures:
+                failed.setdefault(f["id"], []).append(f["check"])
+            print(f"[twin] {len(e.failures)} physical check(s) failed; the twin is written and they are "
+                  f"reported (twin.on_check_failure = report):\n" + "\n".join(f["message"] for f in e.failures),
+                  flush=True)
         m["check_s"] = round(time.perf_counter() - t0, 3)
+        m["n_check_failures"] = len(rep["failures"])
+        m["n_parts_failing_checks"] = len(failed)
         m.update({f"sim_{k}": v for k, v in rep.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
         write_json(run.out("checks"), rep)
     else:
@@ -163,6 +179,7 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
                                    "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
                                    "interior": raw[b.id].get("interior", {}),
                                    "grasp": raw[b.id].get("grasp"),
+                                   "checks": sorted(set(failed.get(b.id, []))) if cfg.check else None,
                                    "confidence": by_id[b.id].extra.get("confidence"),
                                    "low_margin": bool(by_id[b.id].extra.get("low_margin", False))})
     write_json(run.out("index"), twin_json)

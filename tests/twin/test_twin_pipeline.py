@@ -2,6 +2,7 @@
 door, a flap, two cups): complete/ -> twin/ with MJCF (checked), URDF, USD, per-body Gaussians,
 opened-state renders and twin.json; bad bodies end in an error naming the part."""
 
+import dataclasses
 import json
 
 import mujoco
@@ -10,9 +11,9 @@ import pytest
 import trimesh
 from sim_fixtures import kitchen, parts_of
 
-from drawer_lib.bodies import PartBody, TwinModel
+from drawer_lib.bodies import PartBody, TwinModel, box_shape
 from drawer_lib.complete.io import write_complete
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, TwinCheckError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.parts import write_parts
 from drawer_lib.runner import StageRun
@@ -20,6 +21,7 @@ from drawer_lib.sim.config import SimConfig
 from drawer_lib.splat.gaussians import box_surface_gaussians, concat
 from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.twin.config import RendersConfig, TwinConfig
+from drawer_lib.viewer.config import RecordConfig
 from drawer_lib.twin.pipeline import run_twin
 from drawer_lib.viewer.scene import load_twin_scene
 
@@ -119,3 +121,35 @@ def test_a_bad_part_is_an_error_naming_it(tmp_path, exact_capture):
     with pytest.raises(InputError, match=bad.id):
         run_twin(TwinConfig(), SimConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
                  StageRun("twin", tmp_path / "twin", tmp_path / "twin", 0))
+
+
+def test_a_failing_check_is_reported_per_part_and_the_twin_is_still_written(tmp_path, exact_capture):
+    """A door 5 mm into the static scene fails the penetration check: by default the twin is
+    written and checks.json, twin.json and the metrics name the part and the check; with
+    ``on_check_failure: error`` the stage stops with the error (the runner then keeps nothing)."""
+    model = kitchen()
+    door = next(p for p in model.parts if p.kind == "revolute")
+    lo, hi = door.collision[0].box.center - door.collision[0].box.half, door.collision[0].box.center + door.collision[0].box.half
+    # a static box reaching 5 mm into the door's panel from behind
+    intruder = box_shape((lo + hi) / 2 + np.array([0.0, (hi - lo)[1] / 2 + 0.02 - 0.005, 0.0]),
+                         [(hi - lo)[0] / 4, 0.02, (hi - lo)[2] / 4])
+    model2 = TwinModel(model.static_visual, [*model.static_collision, intruder], model.parts, model.rigid)
+    (tmp_path / "complete").mkdir()
+    write_complete(tmp_path / "complete", model2, {}, {}, {})
+    write_parts(tmp_path / "parts.json", parts_of(model))
+    cap = load_capture(exact_capture[0], check_files=False)
+    cfg = TwinConfig(renders=RendersConfig(max_views=1, lpips=False), recording=RecordConfig(enabled=False))
+    (tmp_path / "twin").mkdir()
+    m = run_twin(cfg, SimConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
+                 StageRun("twin", tmp_path / "twin", tmp_path / "twin", 0))
+    checks = json.loads((tmp_path / "twin" / "checks.json").read_text())
+    assert {(f["id"], f["check"]) for f in checks["failures"]} >= {(door.id, "penetration")}
+    assert m["n_check_failures"] == len(checks["failures"]) and m["n_parts_failing_checks"] >= 1
+    tj = {p["id"]: p for p in json.loads((tmp_path / "twin" / "twin.json").read_text())["parts"]}
+    assert "penetration" in tj[door.id]["checks"]
+    assert all(tj[p.id]["checks"] == [] for p in model.parts if p.id not in {f["id"] for f in checks["failures"]})
+    assert (tmp_path / "twin" / "scene.xml").is_file()
+    (tmp_path / "twin2").mkdir()
+    with pytest.raises(TwinCheckError, match=door.id):
+        run_twin(dataclasses.replace(cfg, on_check_failure="error"), SimConfig(), cap, tmp_path / "parts.json",
+                 tmp_path / "complete", StageRun("twin", tmp_path / "twin2", tmp_path / "twin2", 0))
