@@ -43,7 +43,9 @@ from drawer_lib.metrics.articulation import match_parts
 from drawer_lib.metrics.image import psnr, ssim
 from drawer_lib.paths import capture_name, stage_name
 from drawer_lib.runner import StageRun
+from drawer_lib.bodies import Shape
 from drawer_lib.sim.checks import check_twin
+from drawer_lib.sim.repair import repair_penetrations
 from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
 from drawer_lib.sim.urdf import write_urdf
 from drawer_lib.sim.usd import write_usd
@@ -96,6 +98,11 @@ def _collision_files(entries: list[dict], complete_dir: Path, out: Path) -> list
     return entries
 
 
+def _box_json(s: Shape) -> dict:
+    """A collision box as ``complete.json`` and ``twin.json`` write it."""
+    return {"kind": "box", **s.box.to_json()}
+
+
 def _tile(img: np.ndarray, width: int) -> np.ndarray:
     h = max(1, round(img.shape[0] * width / img.shape[1]))
     return np.asarray(Image.fromarray(img).resize((width, h), Image.BILINEAR))
@@ -116,7 +123,17 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     for b in model.bodies():
         if b.id not in by_id:
             raise InputError(f"{complete_dir}: body {b.id!r} is not a part of {parts_path}")
-    m: dict = {"n_parts": len(model.parts), "n_rigid": len(model.rigid),
+    t0 = time.perf_counter()
+    model, repairs, kept = repair_penetrations(model, sim, cfg.repair)
+    if repairs:
+        print(f"[twin] repaired {sum(r['action'] in ('carved', 'removed') for r in repairs)} static piece(s) a part "
+              "penetrated at q = 0:\n" + "\n".join(f"  {r['part']}: static piece {r['static_piece']} "
+                                                   f"{r['depth_m'] * 1000:.1f} mm deep, {r['action']}" for r in repairs),
+              flush=True)
+    m: dict = {"repair_s": round(time.perf_counter() - t0, 3),
+               "n_repairs": sum(r["action"] in ("carved", "removed") for r in repairs),
+               "n_unrepaired": sum(r["action"] not in ("carved", "removed") for r in repairs),
+               "n_parts": len(model.parts), "n_rigid": len(model.rigid),
                "n_static_collision": len(model.static_collision),
                "n_part_collision": sum(len(p.collision) for p in model.parts)}
     out = run.dir
@@ -142,6 +159,7 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
             print(f"[twin] {len(e.failures)} physical check(s) failed; the twin is written and they are "
                   f"reported (twin.on_check_failure = report):\n" + "\n".join(f["message"] for f in e.failures),
                   flush=True)
+        rep["repairs"] = repairs
         m["check_s"] = round(time.perf_counter() - t0, 3)
         m["n_check_failures"] = len(rep["failures"])
         m["n_parts_failing_checks"] = len(failed)
@@ -171,7 +189,8 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     raw = {b["id"]: b for b in cj["bodies"]}
     twin_json = {"schema": SCHEMA, "parts": [], "static": {
         "body": "static", "gaussians": f"{gdir}/{STATIC}.ply" if STATIC in gauss else None,
-        "collision": _collision_files(raw[STATIC]["collision"], complete_dir, out)}}
+        "collision": _collision_files([raw[STATIC]["collision"][k] if new is None else _box_json(new)
+                                       for k, new in kept], complete_dir, out)}}
     for b in model.bodies():
         twin_json["parts"].append({"id": b.id, "kind": by_id[b.id].kind, "body": b.id, "joint": b.id,
                                    "actuator": b.id if by_id[b.id].articulated else None,
