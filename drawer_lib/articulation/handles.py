@@ -243,7 +243,7 @@ def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: Hand
     ev = np.percentile(pv, hi) - np.percentile(pv, lo)
     round_ = max(eu, ev) < cfg.round_aspect * min(eu, ev) + cfg.round_slack
     orient = "round" if round_ else ("horizontal" if eu > ev else "vertical")
-    return Handle(a_u, a_v, orient, len(pts), source)
+    return Handle(a_u, a_v, orient, len(pts), source, (round(float(eu), 4), round(float(ev), 4)))
 
 
 def protrusions(front: Front, mesh_points: Float[np.ndarray, "P 3"], normals: Float[np.ndarray, "P 3"],

@@ -192,6 +192,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         pid = f"{dec.family}_{counts.get(dec.family, 0)}"
         counts[dec.family] = counts.get(dec.family, 0) + 1
         extra = {"family": dec.family, "segment": s.id}
+        if h is not None:  # the twin's handle primitive and grasp frame (drawer_lib/complete/grasp.py)
+            extra["handle"] = {"a_u": round(h.a_u, 4), "a_v": round(h.a_v, 4), "orientation": h.orientation,
+                               "size": None if h.size is None else list(h.size), "source": h.source}
         if dec.confidence is not None:
             extra |= {"confidence": round(dec.confidence, 4), "low_margin": low}
             if dec.margin is not None:

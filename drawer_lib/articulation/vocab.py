@@ -74,13 +74,15 @@ def check_weights(weights: dict[str, dict[str, float]], where: str = "articulate
 class Handle:
     """A front's handle: its centroid in the front's unit square (``a_u`` left -> right,
     ``a_v`` bottom -> top), ``orientation`` (horizontal | vertical | round), the ``n_points``
-    of evidence and its ``source`` (geometry: mesh protrusions | masks: handle detections)."""
+    of evidence, its ``source`` (images | masks | colour | geometry) and ``size``: its extents
+    along the front's u and v (m; the 5-95 percentile ranges of its evidence)."""
 
     a_u: float
     a_v: float
     orientation: str
     n_points: int
     source: str
+    size: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ Lengths in metres, angles in degrees, densities in kg/m^3.
 
 from dataclasses import dataclass, field
 
+from drawer_lib.complete.grasp import HandleConfig
 from drawer_lib.complete.interiors.config import InteriorsConfig
 from drawer_lib.errors import ConfigError
 
@@ -213,7 +214,7 @@ class GaussiansConfig:
 @dataclass(frozen=True)
 class CompleteConfig:
     """The ``complete`` stage (conf/complete/default.yaml): cut, static collision, rigid solids,
-    interiors and the bodies' Gaussians. ``sample_per_m2``: mesh points per m^2 the interiors
+    interiors, the bodies' Gaussians and the handles (:mod:`drawer_lib.complete.grasp`). ``sample_per_m2``: mesh points per m^2 the interiors
     measure their depths on; ``collision_clearance`` (m): a part's collision panel is inset by
     this on every side (reconstructed fronts abut and must not touch at q = 0)."""
 
@@ -222,6 +223,7 @@ class CompleteConfig:
     rigid: RigidConfig = field(default_factory=RigidConfig)
     interiors: InteriorsConfig = field(default_factory=InteriorsConfig)
     gaussians: GaussiansConfig = field(default_factory=GaussiansConfig)
+    handle: HandleConfig = field(default_factory=HandleConfig)
     sample_per_m2: float = 20000.0
     collision_clearance: float = 0.005
 

@@ -48,10 +48,11 @@ def _mesh_file(shapes: list[Shape], folder: Path, body: str) -> list[str]:
 
 
 def write_complete(folder: Path, model: TwinModel, gaussians: dict[str, Gaussians], interiors: dict[str, dict],
-                   info: dict) -> Path:
+                   info: dict, grasps: dict[str, dict] | None = None) -> Path:
     """Write ``model`` (static scene, parts, rigid objects), each body's Gaussians (keyed by body
-    id, ``static`` for the scene) and each part's interior record into ``folder`` (which must
-    exist and be empty: the stage runner renames it into place)."""
+    id, ``static`` for the scene), each part's interior record and grasp frame
+    (:func:`~drawer_lib.complete.grasp.grasp_frame`) into ``folder`` (which must exist and be
+    empty: the stage runner renames it into place)."""
     folder = Path(folder)
     for sub in ("meshes", "collision", "gaussians"):
         (folder / stage_name("complete", sub)).mkdir()
@@ -72,7 +73,8 @@ def write_complete(folder: Path, model: TwinModel, gaussians: dict[str, Gaussian
         bodies.append(body(p.id, p.kind, p.visual, p.collision, p.density,
                            {"axis": {"origin": np.asarray(p.axis_origin).tolist(),
                                      "direction": np.asarray(p.axis_direction).tolist()},
-                            "limits": list(map(float, p.limits)), "interior": interiors.get(p.id, {})}))
+                            "limits": list(map(float, p.limits)), "interior": interiors.get(p.id, {}),
+                            "grasp": (grasps or {}).get(p.id)}))
     for r in model.rigid:
         bodies.append(body(r.id, "rigid", r.visual, r.collision, r.density, {}))
     index = folder / stage_name("complete", "index")

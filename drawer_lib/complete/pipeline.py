@@ -13,7 +13,9 @@
    objects (above their support), plus the cavities' walls and shelves and a thin pad under
    each rigid object whose top is its support height;
 5. **parts**: visual = the cut faces (+ a drawer's box), collision = the front panel as a box
-   (inset by ``collision_clearance``), the handle's hull, a drawer's box walls;
+   (inset by ``collision_clearance``), the handle as a box from its evidence
+   (:mod:`~drawer_lib.complete.grasp`; the mesh's protrusion hull when there is none), a
+   drawer's box walls; and each part's grasp frame;
 6. **Gaussians**: the appearance model's Gaussians go to the body whose front slab holds their
    anchor face (``static`` otherwise, or a rigid object's when inside its bounds), plus flat
    Gaussians on the interiors' walls coloured from the cabinet, less those a training view
@@ -37,6 +39,7 @@ import trimesh
 from drawer_lib.articulation.fronts import sample_points
 from drawer_lib.complete.config import CompleteConfig
 from drawer_lib.complete.cut import body_owner, cut_parts, front_box, is_drawer
+from drawer_lib.complete.grasp import grasp_frame, handle_box
 from drawer_lib.complete.interiors.drawer_rule import drawer_rule_interiors
 from drawer_lib.complete.interiors.evidence import floor_height
 from drawer_lib.complete.interiors.fit import build_interiors
@@ -185,6 +188,8 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
 
     # 5. parts
     bodies = []
+    grasps: dict[str, dict] = {}
+    n_handle = 0
     for p in arts:
         pc = cut.parts[p.id]
         it = interiors.get(p.id)
@@ -192,10 +197,16 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
         # behind the outer face, one panel thick, inset by the clearance: reconstructed fronts
         # abut (shared edges) and must not touch their neighbours at q = 0
         panel = front_box(p.front, -cfg.cut.panel_thickness, 0.0, cfg.collision_clearance)
-        collision = [Shape("box", box=panel)] + _handle_hull(pc.body, p, cfg.cut.protrusion) + moving_walls
+        grip = handle_box(p, cfg.handle)
+        handle = [grip] if grip is not None else _handle_hull(pc.body, p, cfg.cut.protrusion)
+        grasps[p.id] = grasp_frame(p, cfg.handle)
+        n_handle += grip is not None
+        collision = [Shape("box", box=panel)] + handle + moving_walls
         bodies.append(PartBody(p.id, p.kind, np.asarray(p.axis.origin), np.asarray(p.axis.direction), p.limits,
                                _mesh(pc.body) + moving_walls, collision, density_part))
 
+    m["n_handle_boxes"] = n_handle
+    m["n_grasp_free_edge"] = sum(g["kind"] == "free_edge" for g in grasps.values())
     model = TwinModel(_mesh(cut.static) + cavity_walls, sc.shapes + cavity_walls, bodies, rigid_bodies).validate()
 
     # 6. Gaussians
@@ -234,7 +245,7 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     m.update({k: round(v, 3) for k, v in times.items()})
     info = {"rigid": rigid_stats, "collision_fidelity": fid, "static_collision": sc.stats, "cut": cut.stats(),
             "floor_z": floor_z}
-    write_complete(run.dir, model, gauss, inter_json, info)
+    write_complete(run.dir, model, gauss, inter_json, info, grasps)
     return m
 
 

@@ -110,7 +110,7 @@ class CheckConfig:
     Drive: with its velocity target at the drive speed every part reaches ``open_fraction`` of
     its upper limit within ``open_time`` (or 1.2 x range / speed when that is longer) and never
     passes the limit by more than ``drive_overshoot_rad`` / ``drive_overshoot_m``.
-    Pull (actuators off): ``pull_force`` along a drawer's axis, ``pull_torque`` about a hinge
+    Pull (the model as it loads): ``pull_force`` along a drawer's axis, ``pull_torque`` about a hinge
     open it to ``pull_fraction`` of its range within ``open_time``, overshoot <=
     ``pull_overshoot_rad`` / ``pull_overshoot_m``. Penetration: at q = 0 a part intersects the
     static scene or another part by <= ``penetration``; along its path (``path_samples`` poses in
@@ -150,12 +150,16 @@ class SimConfig:
     than 45° from vertical) its mechanism carries (MuJoCo body ``gravcomp``): up-opening flaps
     ride on gas struts or lift fittings and down-opening ones on balancing springs, so a hand
     moves them as it moves a door; 0 leaves the bare panel (a tall lift-up flap then needs more
-    than the 10 N·m pull to open)."""
+    than the 10 N·m pull to open). ``drives_on_load``: the parts' velocity servos act as the
+    file loads (MJCF ``actuatorgroupdisable``; USD drives with their damping). Default off: the
+    twin loads as a passive kitchen, and whoever drives its parts turns them on
+    (:func:`drawer_lib.sim.mjcf.set_drives`; the simulate stage, the viewer and the drive check do)."""
 
     timestep: float = 0.002
     integrator: str = "implicitfast"
     gravity: float = 9.81
     flap_gravcomp: float = 1.0
+    drives_on_load: bool = False
     revolute: JointConfig = field(default_factory=_revolute_default)
     prismatic: JointConfig = field(default_factory=_prismatic_default)
     densities: DensityConfig = field(default_factory=DensityConfig)

@@ -4,7 +4,7 @@ Layout: the world frame is the capture's (m, +z up, gravity -z). The static scen
 ``static`` without joints (welded to the world) holding the static collision pieces and the
 visual meshes. Each articulated part is a body ``<id>`` at its axis origin (world-aligned) with
 one joint ``<id>`` (``hinge`` / ``slide`` through the body origin along the axis, range =
-limits) and one velocity actuator ``<id>`` on it. Each rigid object is a body ``<id>`` at its
+limits) and one velocity actuator ``<id>`` on it, off as the file loads. Each rigid object is a body ``<id>`` at its
 centre of mass with a free joint ``<id>``. Geoms are named ``<owner>/col<k>`` (collision, group
 3) and ``<owner>/vis<k>`` (visual, group 2, no contacts).
 
@@ -22,6 +22,11 @@ Decisions:
   when ``cfg.contact.part_static`` (default off: a part's joint limits are its stops, and a
   reconstructed carcass that overlaps its drawer by a few millimetres must not jam it; the
   checks measure part-vs-static penetration geometrically instead).
+* Passive as loaded: the drives are actuator group 1 (:data:`DRIVE_GROUP`), disabled by
+  ``<option actuatorgroupdisable>`` unless ``cfg.drives_on_load``: the file a user loads is a
+  kitchen whose parts a hand or a robot moves against their joints' damping and friction alone
+  (an enabled servo at its default control 0 is a damper of gain ``kv``: a 20 N pull moves a
+  5 kg drawer ~5 cm in 3 s). Whoever drives the parts turns the group on (:func:`set_drives`).
 * Drives: a velocity servo with ``kv = (inertia about the joint + armature) / drive_tau`` (the
   same response for every part whatever its mass; a gain proportional to the inertia never
   outruns the integrator, even when the force limit clips it), control range +-drive speed,
@@ -47,6 +52,7 @@ STATIC = "static"
 MESHDIR = stage_name("twin", "mjcf_assets")
 SCENE = stage_name("twin", "mjcf")
 BIT_STATIC, BIT_PART, BIT_RIGID = 1, 2, 4
+DRIVE_GROUP = 1  # the actuator group of the parts' drives (bit DRIVE_GROUP of opt.disableactuator)
 GROUP_VISUAL, GROUP_COLLISION = 2, 3
 _MIN_MASS, _MIN_INERTIA = 1e-9, 1e-12  # kg, kg·m^2
 # the integrators by their config names (``sim.integrator``, ``stability.integrators``)
@@ -134,6 +140,7 @@ def build_spec(model: TwinModel, cfg: SimConfig | None = None) -> mujoco.MjSpec:
     spec.option.timestep = cfg.timestep
     spec.option.integrator = INTEGRATOR_ENUM[cfg.integrator]
     spec.option.gravity = [0.0, 0.0, -cfg.gravity]
+    spec.option.disableactuator = 0 if cfg.drives_on_load else 1 << DRIVE_GROUP
     assets: dict[str, bytes] = {}
     zero = np.zeros(3)
 
@@ -157,6 +164,7 @@ def build_spec(model: TwinModel, cfg: SimConfig | None = None) -> mujoco.MjSpec:
         _add_shapes(spec, body, p.id, p.visual, -origin, False, bits["part"], cfg, assets)
         act = spec.add_actuator(name=p.id, target=p.id, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_velocity(kv=drive_gain(p, cfg, props))
+        act.group = DRIVE_GROUP
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         act.ctrlrange = [-jc.speed, jc.speed]
         act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
@@ -249,6 +257,20 @@ def write_mjcf(spec: mujoco.MjSpec, folder: Path | str) -> Path:
 
     write_entries_atomic(folder, [MESHDIR, SCENE], build)
     return folder / SCENE
+
+
+def set_drives(m: mujoco.MjModel, on: bool) -> mujoco.MjModel:
+    """Turn the parts' drives (actuator group :data:`DRIVE_GROUP`) on or off in the compiled
+    model ``m`` (in place; returned for chaining). As the twin loads they are off."""
+    bit = 1 << DRIVE_GROUP
+    m.opt.disableactuator = (int(m.opt.disableactuator) & ~bit) if on else (int(m.opt.disableactuator) | bit)
+    return m
+
+
+def drives_on(m: mujoco.MjModel) -> bool:
+    """Whether the parts' drives act in ``m`` (actuation enabled and their group not disabled)."""
+    return not (int(m.opt.disableactuator) >> DRIVE_GROUP) & 1 and not (
+        int(m.opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION))
 
 
 def part_index(m: mujoco.MjModel, pid: str) -> dict[str, int]:

@@ -22,8 +22,10 @@ collision mesh is its convex hull with ``CollisionAPI`` + ``MeshCollisionAPI`` a
 axis origin in the static frame = world, ``localPos1`` 0 in the part frame). Limits: degrees for
 revolute (UsdPhysics convention), metres for prismatic. Masses from the collision solids
 (``mass``, ``centerOfMass``, ``diagonalInertia`` + ``principalAxes``). Drives: type force,
-stiffness 0, damping = the MJCF velocity servo's gain (per degree for angular drives),
-``targetVelocity`` 0 (set it to the drive speed to open), ``maxForce`` the effort.
+stiffness 0, damping 0 (passive, as the MJCF loads) unless ``sim.drives_on_load``, when it is
+the MJCF velocity servo's gain (per degree for angular drives), which every joint also carries
+as ``drawer:driveDamping``; ``targetVelocity`` 0 (to drive a part, set the damping to that gain
+and the target to the drive speed), ``maxForce`` the effort.
 """
 
 import math
@@ -123,7 +125,11 @@ def _joint(stage: Usd.Stage, p: PartBody, cfg: SimConfig) -> None:
     drive = UsdPhysics.DriveAPI.Apply(joint.GetPrim(), "angular" if revolute else "linear")
     drive.CreateTypeAttr("force")
     drive.CreateStiffnessAttr(0.0)
-    drive.CreateDampingAttr(float(drive_gain(p, cfg) / scale))
+    gain = float(drive_gain(p, cfg) / scale)
+    # passive unless asked: a drive's damping at target velocity 0 brakes the part (DRAWER's
+    # 1e10); the servo's gain stays on the prim for whoever drives it
+    drive.CreateDampingAttr(gain if cfg.drives_on_load else 0.0)
+    joint.GetPrim().CreateAttribute("drawer:driveDamping", Sdf.ValueTypeNames.Float).Set(gain)
     drive.CreateTargetVelocityAttr(0.0)
     drive.CreateMaxForceAttr(float(jc.effort))
 

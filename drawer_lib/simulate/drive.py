@@ -15,7 +15,7 @@ from jaxtyping import Float
 
 from drawer_lib.errors import InputError
 from drawer_lib.sim.checks import health
-from drawer_lib.sim.mjcf import part_index
+from drawer_lib.sim.mjcf import drives_on, part_index
 
 
 @dataclass
@@ -41,10 +41,13 @@ def drive_open(m: mujoco.MjModel, pid: str, points: Float[np.ndarray, "P 3"], ta
     ``ctrlrange``), from the model's rest state, until its joint passes the last of the
     increasing ``targets`` (rad or m) or ``max_time`` simulated seconds (default: twice the time
     the last target needs at top speed, plus 1 s) pass. ``points`` [P, 3]: world points on the
-    part at q = 0."""
+    part at q = 0. The model's drives must be on (:func:`~drawer_lib.sim.mjcf.set_drives`)."""
     ix = part_index(m, pid)
     if min(ix["body"], ix["joint"], ix["actuator"]) < 0:
         raise InputError(f"part {pid!r}: the model has no body, joint and actuator of that name")
+    if not drives_on(m):
+        raise InputError(f"part {pid!r}: the model's drives are off (the twin loads passive): turn them on with "
+                         "drawer_lib.sim.mjcf.set_drives(m, True)")
     targets = np.asarray(targets, np.float64)
     if len(targets) == 0 or np.any(np.diff(targets) <= 0) or not np.isfinite(targets).all():
         raise InputError(f"part {pid!r}: targets must be finite and increasing, got {targets}")

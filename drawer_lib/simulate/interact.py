@@ -18,7 +18,7 @@ import numpy as np
 from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.parts import Part
 from drawer_lib.sim.checks import health
-from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, INTEGRATOR_ENUM, part_index
+from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, DRIVE_GROUP, INTEGRATOR_ENUM, part_index
 
 PROBE = "probe"
 
@@ -36,9 +36,10 @@ class Probe:
 
 
 def _spec(xml: Path, option: tuple[str, float] | None = None) -> mujoco.MjSpec:
-    """The twin's spec; ``option`` = (integrator, timestep) overrides its own (the stability
-    study's choice)."""
+    """The twin's spec with the parts' drives on; ``option`` = (integrator, timestep) overrides
+    its own (the stability study's choice)."""
     spec = mujoco.MjSpec.from_file(str(xml))
+    spec.option.disableactuator = int(spec.option.disableactuator) & ~(1 << DRIVE_GROUP)  # the probes drive parts
     if option is not None:
         spec.option.integrator = INTEGRATOR_ENUM[option[0]]
         spec.option.timestep = float(option[1])

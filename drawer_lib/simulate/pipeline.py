@@ -30,7 +30,7 @@ from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.motion import front_grid, kinematic_tracks
 from drawer_lib.runner import StageRun
 from drawer_lib.simulate.interact import cup_rides_along, drop_on_counter, pull_handle
-from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
+from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin, set_drives
 from drawer_lib.simulate.drive import drive_open
 from drawer_lib.stability.pipeline import read_choice
 
@@ -61,6 +61,7 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
     """Drive every articulated part open (module doc); write ``tracks.npz`` and ``motion.json``.
     ``choice_path``: the stability study's ``choice.json`` (used when ``cfg.use_stability``)."""
     xml, m = load_twin(twin_dir, parts_path)
+    set_drives(m, True)  # the twin loads passive; this stage drives its parts
     option = None
     if cfg.use_stability:
         if choice_path is None or not Path(choice_path).is_file():

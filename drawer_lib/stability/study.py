@@ -392,18 +392,18 @@ def extreme_cases() -> list[Case]:
 
 def twin_case(m: mujoco.MjModel, parts: Sequence, duration: float | None = None) -> Case:
     """The twin's own parts, nominal: every articulated part of the compiled twin ``m`` driven
-    open at once through its actuator (its ``ctrlrange`` top speed) with contacts off (the
+    open at once through its actuator (its drives turned on) (its ``ctrlrange`` top speed) with contacts off (the
     parts do not touch each other or the static scene by default; the rigid objects' contacts
     are the ``contact_rich`` case and the twin's rest check), for ``duration`` s (default: until
     the slowest reaches its upper limit, + 0.2 s). Observed: each part's joint, scaled to metres
     at its front's farthest point from the axis (a prismatic joint is already in metres), so
     the error is how far a point of the front strays. ``parts``: :class:`drawer_lib.io.parts.Part`."""
     from drawer_lib.metrics.motion import front_grid
-    from drawer_lib.sim.mjcf import part_index
+    from drawer_lib.sim.mjcf import part_index, set_drives
 
     if not parts:
         raise InputError("stability: the twin has no articulated part")
-    m = copy.copy(m)
+    m = set_drives(copy.copy(m), True)  # the twin loads passive; the case drives its parts
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     ixs, scale, t_open = [], [], 0.0
     for p in parts:

@@ -5,6 +5,7 @@ opened-state renders and the shareable recording. The simulation model and its c
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.sim.repair import RepairConfig
 from drawer_lib.viewer.config import RecordConfig
 
 
@@ -33,10 +34,22 @@ class RendersConfig:
 
 @dataclass(frozen=True)
 class TwinConfig:
-    """``check``: run the physical checks before writing (a failing check is an error naming the
-    part); ``renders``: the opened-state renders; ``recording``: the shareable browser recording
-    of every part opened in turn (``open_parts.html``)."""
+    """``check``: run the physical checks; ``on_check_failure``: ``report`` writes the twin all the
+    same and lists every failing part and check in ``checks.json``, ``twin.json`` (per part
+    ``checks``) and the metrics (a part a few millimetres into the carcass must not cost the
+    whole twin), ``error`` stops with the error naming them and writes nothing (a simulation
+    that goes non-finite stops either way); ``repair``: a part a few millimetres into the static
+    scene at q = 0 is freed by carving the static collision (:mod:`drawer_lib.sim.repair`);
+    ``renders``: the opened-state renders;
+    ``recording``: the shareable browser recording of every part opened in turn
+    (``open_parts.html``)."""
 
     check: bool = True
+    on_check_failure: str = "report"
+    repair: RepairConfig = field(default_factory=RepairConfig)
     renders: RendersConfig = field(default_factory=RendersConfig)
     recording: RecordConfig = field(default_factory=RecordConfig)
+
+    def __post_init__(self):
+        if self.on_check_failure not in ("report", "error"):
+            raise ConfigError(f"twin.on_check_failure = {self.on_check_failure!r} must be report or error")

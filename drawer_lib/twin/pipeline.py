@@ -6,7 +6,9 @@
 2. ``scene.xml`` (+ ``assets/``) built with ``MjSpec``, compiled and checked before anything is
    written (every drive opens its part, a person's pull opens it, the limits hold, nothing
    penetrates, rigid objects rest, no NaN or MuJoCo warning; :func:`drawer_lib.sim.checks.
-   check_twin`) — a failing check is an error naming the part;
+   check_twin`) — a failing check is reported per part (``checks.json`` ``failures``,
+   ``twin.json`` ``checks``) and the twin still written (``on_check_failure: error`` stops
+   instead); a simulation that goes non-finite stops the stage;
 3. ``urdf/scene.urdf`` and ``scene.usda``;
 4. ``gaussians/static.ply`` and ``gaussians/<id>.ply`` (INRIA layout, world frame at q = 0) and
    ``visual.glb`` (the visual meshes, one node per body); ``twin.json`` (bodies, their
@@ -33,7 +35,7 @@ from PIL import Image
 
 from drawer_lib.capture.config import SceneConfig
 from drawer_lib.complete.io import STATIC, read_complete
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, TwinCheckError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json, write_rgb
 from drawer_lib.io.parts import Part, read_parts
@@ -41,7 +43,9 @@ from drawer_lib.metrics.articulation import match_parts
 from drawer_lib.metrics.image import psnr, ssim
 from drawer_lib.paths import capture_name, stage_name
 from drawer_lib.runner import StageRun
+from drawer_lib.bodies import Shape
 from drawer_lib.sim.checks import check_twin
+from drawer_lib.sim.repair import repair_penetrations
 from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
 from drawer_lib.sim.urdf import write_urdf
 from drawer_lib.sim.usd import write_usd
@@ -94,6 +98,11 @@ def _collision_files(entries: list[dict], complete_dir: Path, out: Path) -> list
     return entries
 
 
+def _box_json(s: Shape) -> dict:
+    """A collision box as ``complete.json`` and ``twin.json`` write it."""
+    return {"kind": "box", **s.box.to_json()}
+
+
 def _tile(img: np.ndarray, width: int) -> np.ndarray:
     h = max(1, round(img.shape[0] * width / img.shape[1]))
     return np.asarray(Image.fromarray(img).resize((width, h), Image.BILINEAR))
@@ -114,7 +123,17 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     for b in model.bodies():
         if b.id not in by_id:
             raise InputError(f"{complete_dir}: body {b.id!r} is not a part of {parts_path}")
-    m: dict = {"n_parts": len(model.parts), "n_rigid": len(model.rigid),
+    t0 = time.perf_counter()
+    model, repairs, kept = repair_penetrations(model, sim, cfg.repair)
+    if repairs:
+        print(f"[twin] repaired {sum(r['action'] in ('carved', 'removed') for r in repairs)} static piece(s) a part "
+              "penetrated at q = 0:\n" + "\n".join(f"  {r['part']}: static piece {r['static_piece']} "
+                                                   f"{r['depth_m'] * 1000:.1f} mm deep, {r['action']}" for r in repairs),
+              flush=True)
+    m: dict = {"repair_s": round(time.perf_counter() - t0, 3),
+               "n_repairs": sum(r["action"] in ("carved", "removed") for r in repairs),
+               "n_unrepaired": sum(r["action"] not in ("carved", "removed") for r in repairs),
+               "n_parts": len(model.parts), "n_rigid": len(model.rigid),
                "n_static_collision": len(model.static_collision),
                "n_part_collision": sum(len(p.collision) for p in model.parts)}
     out = run.dir
@@ -125,10 +144,25 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     compile_spec(spec)
     m["build_s"] = round(time.perf_counter() - t0, 3)
     write_mjcf(spec, out)
+    failed: dict[str, list[str]] = {}
     if cfg.check:
         t0 = time.perf_counter()
-        rep = check_twin(run.out("mjcf"), model, sim)
+        try:
+            rep = check_twin(run.out("mjcf"), model, sim)
+            rep["failures"] = []
+        except TwinCheckError as e:
+            if cfg.on_check_failure == "error":
+                raise
+            rep = {**(e.report or {}), "failures": e.failures}
+            for f in e.failures:
+                failed.setdefault(f["id"], []).append(f["check"])
+            print(f"[twin] {len(e.failures)} physical check(s) failed; the twin is written and they are "
+                  f"reported (twin.on_check_failure = report):\n" + "\n".join(f["message"] for f in e.failures),
+                  flush=True)
+        rep["repairs"] = repairs
         m["check_s"] = round(time.perf_counter() - t0, 3)
+        m["n_check_failures"] = len(rep["failures"])
+        m["n_parts_failing_checks"] = len(failed)
         m.update({f"sim_{k}": v for k, v in rep.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
         write_json(run.out("checks"), rep)
     else:
@@ -155,13 +189,16 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     raw = {b["id"]: b for b in cj["bodies"]}
     twin_json = {"schema": SCHEMA, "parts": [], "static": {
         "body": "static", "gaussians": f"{gdir}/{STATIC}.ply" if STATIC in gauss else None,
-        "collision": _collision_files(raw[STATIC]["collision"], complete_dir, out)}}
+        "collision": _collision_files([raw[STATIC]["collision"][k] if new is None else _box_json(new)
+                                       for k, new in kept], complete_dir, out)}}
     for b in model.bodies():
         twin_json["parts"].append({"id": b.id, "kind": by_id[b.id].kind, "body": b.id, "joint": b.id,
                                    "actuator": b.id if by_id[b.id].articulated else None,
                                    "gaussians": f"{gdir}/{b.id}.ply" if b.id in gauss else None,
                                    "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
                                    "interior": raw[b.id].get("interior", {}),
+                                   "grasp": raw[b.id].get("grasp"),
+                                   "checks": sorted(set(failed.get(b.id, []))) if cfg.check else None,
                                    "confidence": by_id[b.id].extra.get("confidence"),
                                    "low_margin": bool(by_id[b.id].extra.get("low_margin", False))})
     write_json(run.out("index"), twin_json)

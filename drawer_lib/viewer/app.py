@@ -33,7 +33,7 @@ import numpy as np
 import trimesh
 import viser
 
-from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, GROUP_COLLISION
+from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, GROUP_COLLISION, set_drives
 from drawer_lib.viewer.scene import TwinScene, relative_poses
 
 FPS = 30.0  # pose updates per second sent to the browser
@@ -211,10 +211,11 @@ class TwinViewer:
 
     @staticmethod
     def _own(m: mujoco.MjModel) -> mujoco.MjModel:
-        """``m`` with MuJoCo's auto-reset off: a diverged state then shows as non-finite, which
-        :meth:`step` reports, instead of a silent jump back to rest."""
+        """``m`` with MuJoCo's auto-reset off (a diverged state then shows as non-finite, which
+        :meth:`step` reports, instead of a silent jump back to rest) and the parts' drives on
+        (the twin loads passive; the sliders command the drives)."""
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-        return m
+        return set_drives(m, True)
 
     # ------------------------------------------------------------ kinematics
     def _qadr(self, pid: str) -> int:

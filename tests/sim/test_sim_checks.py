@@ -10,7 +10,7 @@ import pytest
 import sim_fixtures as F
 from drawer_lib.errors import InputError, NonFiniteError, TwinCheckError
 from drawer_lib.sim.checks import check_twin
-from drawer_lib.sim.mjcf import build_spec, compile_spec, part_index, write_mjcf
+from drawer_lib.sim.mjcf import DRIVE_GROUP, build_spec, compile_spec, drives_on, part_index, set_drives, write_mjcf
 from drawer_lib.bodies import TwinModel
 from drawer_lib.sim.config import ContactConfig, JointConfig, SimConfig
 
@@ -54,9 +54,45 @@ def test_checks_also_pass_with_part_static_contacts():
     assert r["drive_time_to_open_s_max"] < 3.0
 
 
+def _pulled(m: mujoco.MjModel, pid: str, force: float, seconds: float = 3.0) -> float:
+    """The joint value of part ``pid`` after a constant generalised ``force`` for ``seconds``."""
+    ix = part_index(m, pid)
+    d = mujoco.MjData(m)
+    d.qfrc_applied[ix["dof"]] = force
+    mujoco.mj_step(m, d, nstep=round(seconds / m.opt.timestep))
+    return float(d.qpos[ix["qpos"]])
+
+
+def test_the_file_as_it_loads_is_a_passive_kitchen(tmp_path):
+    """Loaded from scene.xml, the drives are off (actuator group disabled by the file's option),
+    and a person's pull opens the drawer and the door; with the drives on, the servo at its
+    default control 0 is a damper that holds both nearly shut. The checks pull the file as
+    loaded: a twin written with its drives on fails them, naming the parts."""
+    twin = F.kitchen()
+    xml = write_mjcf(build_spec(twin), tmp_path / "twin")
+    assert f'actuatorgroupdisable="{DRIVE_GROUP}"' in xml.read_text()  # a list of groups in the XML
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    assert not drives_on(m) and (m.actuator_group == DRIVE_GROUP).all()
+    c = SimConfig().checks
+    drawer, door = (next(p for p in twin.parts if p.id == k) for k in ("drawer_0", "door_0"))
+    assert _pulled(m, "drawer_0", c.pull_force) > 0.9 * drawer.limits[1]
+    assert _pulled(m, "door_0", c.pull_torque) > 0.9 * door.limits[1]
+    braked = set_drives(mujoco.MjModel.from_xml_path(str(xml)), True)
+    assert drives_on(braked)
+    # the 4.9 kg drawer's servo (kv 247 N·s/m: 20 N / kv = 8 cm/s) holds it to about half its
+    # travel in 3 s; this fixture's light door (kv 16 N·m·s/rad) still swings open
+    assert _pulled(braked, "drawer_0", c.pull_force) < c.pull_fraction * drawer.limits[1]
+    assert check_twin(xml, twin)["drives_on_load"] is False
+    on = SimConfig(drives_on_load=True)
+    with pytest.raises(TwinCheckError, match="pulled with") as e:
+        check_twin(compile_spec(build_spec(twin, on)), twin, on)
+    assert {f["check"] for f in e.value.failures} == {"pull"}
+    assert "drawer_0" in {f["id"] for f in e.value.failures}
+
+
 def test_door_stops_at_its_limit_under_a_constant_drive():
     twin = F.single(F.door_cabinet)
-    m = compile_spec(build_spec(twin))
+    m = set_drives(compile_spec(build_spec(twin)), True)
     ix = part_index(m, "door_0")
     d = mujoco.MjData(m)
     d.ctrl[ix["actuator"]] = m.actuator_ctrlrange[ix["actuator"], 1]
@@ -80,7 +116,7 @@ def test_a_cup_in_an_open_drawer_rides_along_when_it_closes():
     hi = drawer.limits[1]
     cup = F.cup(0.0, 0.225 - hi, F.T + 0.003 + F.TD, "cup_0")  # centred on the open drawer's bottom
     twin = TwinModel(static_collision=[F.floor(), *walls], parts=[drawer], rigid=[cup])
-    m = compile_spec(build_spec(twin))
+    m = set_drives(compile_spec(build_spec(twin)), True)
     ix = part_index(m, "drawer_0")
     cb = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cup_0")
     d = mujoco.MjData(m)
@@ -190,7 +226,7 @@ def test_tiny_part_drives_stably():
                       limits=(0.0, 0.025), visual=[], collision=shapes, density=600.0)
     twin = TwinModel(static_collision=[F.floor()], parts=[part])
     cfg = SimConfig(prismatic=JointConfig(damping=0.1, armature=0.0, frictionloss=0.01, speed=0.5))
-    m = compile_spec(build_spec(twin, cfg))
+    m = set_drives(compile_spec(build_spec(twin, cfg)), True)
     ix = part_index(m, "tiny")
     assert m.body_mass[ix["body"]] == pytest.approx(part.mass_properties().mass, rel=1e-12)
     assert m.body_mass[ix["body"]] < 0.02 and m.body_inertia[ix["body"]].max() < 1e-5

@@ -14,6 +14,7 @@ import sim_fixtures as F
 from drawer_lib.bodies import TwinModel, box_shape
 from drawer_lib.sim.config import SimConfig
 from drawer_lib.sim.urdf import matrix_to_rpy, write_urdf
+from drawer_lib.sim.mjcf import drive_gain
 from drawer_lib.sim.usd import joint_frame, write_usd
 
 
@@ -134,6 +135,11 @@ def test_usd_reopens_with_the_same_joints(twin, tmp_path):
         np.testing.assert_allclose(mass.GetDiagonalInertiaAttr().Get(), props.principal, rtol=1e-5)
         cols = [c for c in body.GetChildren() if c.HasAPI(UsdPhysics.CollisionAPI)]
         assert len(cols) == len(p.collision)
+        # passive as it loads: the drive neither holds nor brakes; its servo gain is on the prim
+        drive = UsdPhysics.DriveAPI(prim, "angular" if p.kind == "revolute" else "linear")
+        assert drive.GetStiffnessAttr().Get() == 0 and drive.GetDampingAttr().Get() == 0
+        assert prim.GetAttribute("drawer:driveDamping").Get() == pytest.approx(drive_gain(p, SimConfig()) / scale,
+                                                                              rel=1e-6)
     static = stage.GetPrimAtPath("/World/static")
     assert static.HasAPI(UsdPhysics.ArticulationRootAPI)
     for r in twin.rigid:

@@ -12,7 +12,7 @@ from drawer_lib.errors import InputError
 from drawer_lib.io.parts import write_parts
 from drawer_lib.metrics.motion import front_grid, motion_emd
 from drawer_lib.runner import StageRun
-from drawer_lib.sim.mjcf import build_spec, compile_spec, write_mjcf
+from drawer_lib.sim.mjcf import build_spec, compile_spec, set_drives, write_mjcf
 from drawer_lib.simulate.pipeline import SimulateConfig, run_simulate
 from drawer_lib.simulate.drive import drive_open
 from drawer_lib.geometry.camera import Camera, Intrinsics
@@ -68,6 +68,9 @@ def test_simulated_tracks_against_the_part_itself_give_zero_emd(simulated):
 def test_drive_open_errors_name_the_part():
     m = compile_spec(build_spec(F.kitchen()))
     pts = front_grid(F.parts_of(F.kitchen()).parts[0].front)
+    with pytest.raises(InputError, match="drives are off"):  # the twin loads passive
+        drive_open(m, "drawer_0", pts, np.array([0.1]))
+    set_drives(m, True)
     with pytest.raises(InputError, match="'nope'"):
         drive_open(m, "nope", pts, np.array([0.1]))
     with pytest.raises(InputError, match="increasing"):

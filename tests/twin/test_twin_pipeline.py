@@ -2,6 +2,7 @@
 door, a flap, two cups): complete/ -> twin/ with MJCF (checked), URDF, USD, per-body Gaussians,
 opened-state renders and twin.json; bad bodies end in an error naming the part."""
 
+import dataclasses
 import json
 
 import mujoco
@@ -10,9 +11,9 @@ import pytest
 import trimesh
 from sim_fixtures import kitchen, parts_of
 
-from drawer_lib.bodies import PartBody, TwinModel
+from drawer_lib.bodies import PartBody, TwinModel, box_shape
 from drawer_lib.complete.io import write_complete
-from drawer_lib.errors import InputError
+from drawer_lib.errors import InputError, TwinCheckError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.parts import write_parts
 from drawer_lib.runner import StageRun
@@ -20,6 +21,7 @@ from drawer_lib.sim.config import SimConfig
 from drawer_lib.splat.gaussians import box_surface_gaussians, concat
 from drawer_lib.splat.ply import read_gaussian_ply
 from drawer_lib.twin.config import RendersConfig, TwinConfig
+from drawer_lib.viewer.config import RecordConfig
 from drawer_lib.twin.pipeline import run_twin
 from drawer_lib.viewer.scene import load_twin_scene
 
@@ -119,3 +121,65 @@ def test_a_bad_part_is_an_error_naming_it(tmp_path, exact_capture):
     with pytest.raises(InputError, match=bad.id):
         run_twin(TwinConfig(), SimConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
                  StageRun("twin", tmp_path / "twin", tmp_path / "twin", 0))
+
+
+def _intruded(tmp_path, depth: float):
+    """The kitchen fixture plus a static box reaching ``depth`` m into its door's panel from
+    behind; (model, door, the box's index in the static collision), complete/ and parts.json
+    written under ``tmp_path``."""
+    model = kitchen()
+    door = next(p for p in model.parts if p.kind == "revolute")
+    b = door.collision[0].box
+    lo, hi = b.center - b.half, b.center + b.half
+    intruder = box_shape((lo + hi) / 2 + np.array([0.0, (hi - lo)[1] / 2 + 0.02 - depth, 0.0]),
+                         [(hi - lo)[0] / 4, 0.02, (hi - lo)[2] / 4])
+    model2 = TwinModel(model.static_visual, [*model.static_collision, intruder], model.parts, model.rigid)
+    (tmp_path / "complete").mkdir()
+    write_complete(tmp_path / "complete", model2, {}, {}, {})
+    write_parts(tmp_path / "parts.json", parts_of(model))
+    return model, door, len(model2.static_collision) - 1
+
+
+def _run(tmp_path, exact_capture, name: str, cfg=None):
+    cap = load_capture(exact_capture[0], check_files=False)
+    cfg = cfg or TwinConfig(renders=RendersConfig(max_views=1, lpips=False), recording=RecordConfig(enabled=False))
+    (tmp_path / name).mkdir()
+    return run_twin(cfg, SimConfig(), cap, tmp_path / "parts.json", tmp_path / "complete",
+                    StageRun("twin", tmp_path / name, tmp_path / name, 0))
+
+
+def test_a_part_a_few_millimetres_into_the_static_scene_is_freed_by_carving(tmp_path, exact_capture):
+    """A static box 5 mm into the door's panel at q = 0 is carved back (5 mm + the clearance):
+    every check passes, checks.json says what was carved, and twin.json lists the carved box."""
+    model, door, k = _intruded(tmp_path, 0.005)
+    m = _run(tmp_path, exact_capture, "twin")
+    checks = json.loads((tmp_path / "twin" / "checks.json").read_text())
+    assert checks["failures"] == [] and m["n_repairs"] == 1 and m["n_check_failures"] == 0
+    (r,) = checks["repairs"]
+    assert (r["part"], r["static_piece"], r["action"]) == (door.id, k, "carved") and r["depth_m"] == pytest.approx(0.005, abs=2e-4)
+    static = json.loads((tmp_path / "twin" / "twin.json").read_text())["static"]["collision"]
+    assert len(static) == k + 1
+    carved = static[k]
+    assert carved["half"][1] == pytest.approx(0.02 - (r["depth_m"] + 0.001) / 2, abs=1e-9)
+    assert checks["penetration_max_m"] <= 1e-4
+
+
+def test_a_failing_check_is_reported_per_part_and_the_twin_is_still_written(tmp_path, exact_capture):
+    """A static box 3 cm into the door (deeper than a repair may carve: a wrong rectangle, not a
+    small defect) fails the penetration check: by default the twin is written and checks.json,
+    twin.json and the metrics name the part and the check; with ``on_check_failure: error`` the
+    stage stops with the error (the runner then keeps nothing)."""
+    model, door, _ = _intruded(tmp_path, 0.03)
+    m = _run(tmp_path, exact_capture, "twin")
+    checks = json.loads((tmp_path / "twin" / "checks.json").read_text())
+    assert {(f["id"], f["check"]) for f in checks["failures"]} >= {(door.id, "penetration")}
+    assert [r["action"] for r in checks["repairs"]] == ["too deep"] and m["n_unrepaired"] == 1
+    assert m["n_check_failures"] == len(checks["failures"]) and m["n_parts_failing_checks"] >= 1
+    tj = {p["id"]: p for p in json.loads((tmp_path / "twin" / "twin.json").read_text())["parts"]}
+    assert "penetration" in tj[door.id]["checks"]
+    assert all(tj[p.id]["checks"] == [] for p in model.parts if p.id not in {f["id"] for f in checks["failures"]})
+    assert (tmp_path / "twin" / "scene.xml").is_file()
+    cfg = TwinConfig(renders=RendersConfig(max_views=1, lpips=False), recording=RecordConfig(enabled=False),
+                     on_check_failure="error")
+    with pytest.raises(TwinCheckError, match=door.id):
+        _run(tmp_path, exact_capture, "twin2", cfg)
