@@ -92,9 +92,11 @@ def test_moving_a_slider_in_the_page_changes_the_image_inside_the_part_only(tmp_
             assert page.evaluate("document.querySelectorAll('[role=slider]').length") == 3
             page.evaluate("document.querySelectorAll('[role=slider]')[0].focus()")
             page.press("End", 35)
-            page.wait_until(lambda: viewer.sliders["drawer_0"].value == pytest.approx(0.4), 30,
-                            "the page's slider to reach the viewer")
-            assert viewer.q("drawer_0") == pytest.approx(0.4) and viewer.q("door_0") == 0.0
+            # the slider's value arrives before its callback has moved the part: wait for both
+            page.wait_until(lambda: viewer.sliders["drawer_0"].value == pytest.approx(0.4)
+                            and viewer.q("drawer_0") == pytest.approx(0.4), 30,
+                            "the page's slider to reach the viewer and move the drawer")
+            assert viewer.q("door_0") == 0.0
             after = settled(render, "the open drawer's render")
             page.screenshot(ARTIFACTS / "page_open.png")
     finally:
