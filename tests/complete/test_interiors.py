@@ -6,6 +6,7 @@ evidence is what a capture of the closed cabinet sees (the wall above it, the co
 floor, the fronts), sampled on a 1 cm grid.
 """
 
+import mujoco
 import numpy as np
 import pytest
 import trimesh
@@ -318,3 +319,38 @@ def test_gt_interior_depth_on_an_analytic_cabinet():
     assert r["gt"] == "g" and r["fitted"] == pytest.approx(0.43)
     assert r["fitted_error"] == pytest.approx(0.07, abs=2e-3)
     assert r["rule_error"] == pytest.approx(0.88 - 0.5, abs=2e-3)
+
+
+def test_a_sliding_panel_slides_clear_of_its_cabinet_walls():
+    """The cavity's sides start ``cavity_clearance`` behind the panel: a sliding panel (a 2 cm
+    panel box at q = 0, behind its outer face) driven along its plane in MuJoCo with contacts on
+    travels its range; with the sides flush against the panel (clearance 0) it sticks."""
+    import math
+
+    from drawer_lib.bodies import PartBody, TwinModel
+    from drawer_lib.complete.cut import front_box
+    from drawer_lib.bodies import Shape
+    from drawer_lib.sim.config import ContactConfig, SimConfig
+    from drawer_lib.sim.mjcf import build_spec, compile_spec, part_index, set_drives
+
+    p = Part("sliding_0", "prismatic", Axis((0.3, Y, 0.45), (1.0, 0.0, 0.0)), (0.0, 0.3), _front(0.0, 0.6, 0.1, 0.8))
+
+    def travel(clearance: float) -> float:
+        it = build_template(p, "cabinet", TF, 0.5, TemplateConfig(cavity_clearance=clearance))
+        n = np.asarray(p.front.normal)
+        near = [float((w.box.center - np.asarray(p.front.center)) @ n + np.abs(w.box.rotation.T @ n) @ w.box.half)
+                for w, nm in zip(it.walls, it.wall_names) if nm in ("left", "right", "top", "bottom")]
+        np.testing.assert_allclose(near, -(TF + clearance), atol=1e-9)  # every side starts that far behind
+        panel = Shape("box", box=front_box(p.front, -TF, 0.0, 0.005))
+        body = PartBody(p.id, p.kind, np.asarray(p.axis.origin), np.asarray(p.axis.direction), p.limits, [], [panel],
+                        600.0)
+        cfg = SimConfig(contact=ContactConfig(part_static=True, part_part=True))
+        m = set_drives(compile_spec(build_spec(TwinModel([], list(it.walls), [body], []), cfg)), True)
+        ix = part_index(m, p.id)
+        d = mujoco.MjData(m)
+        d.ctrl[ix["actuator"]] = m.actuator_ctrlrange[ix["actuator"], 1]
+        mujoco.mj_step(m, d, nstep=math.ceil(1.5 / m.opt.timestep))
+        return float(d.qpos[ix["qpos"]])
+
+    assert travel(0.003) == pytest.approx(0.3, abs=0.005)
+    assert travel(0.0) < 0.05

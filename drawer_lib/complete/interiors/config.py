@@ -27,7 +27,10 @@ class TemplateConfig:
     the gap above the box), ending ``drawer_back_clearance`` before the carcass back (runners
     come shorter than the carcass). Cabinet: a cavity (back, sides, top, bottom) within the
     front's rectangle inset by ``cavity_inset``, with one shelf per ``shelf_spacing`` of inner
-    height (n = round(h / spacing) - 1, at least 0), set back ``shelf_setback`` from the front.
+    height (n = round(h / spacing) - 1, at least 0), set back ``shelf_setback`` from the front;
+    its sides, top and bottom start ``cavity_clearance`` behind the front panel (a panel that
+    moves in its plane, a sliding door, must not rub on them: flush, MuJoCo's box contact holds
+    it by friction at 2 mm of travel).
     Appliance (a bottom-hinged flap whose lower edge is at most ``appliance_max_bottom`` above
     the floor: an oven, a dishwasher): a cavity without shelves. Walls never take more than
     ``max_wall_frac`` of an extent and insets never more than ``max_inset_frac`` of it, so tiny
@@ -40,6 +43,7 @@ class TemplateConfig:
     drawer_top: float = 0.03
     drawer_back_clearance: float = 0.04
     cavity_inset: float = 0.0
+    cavity_clearance: float = 0.003
     shelf_spacing: float = 0.35
     shelf_setback: float = 0.02
     appliance_max_bottom: float = 0.35
@@ -50,7 +54,7 @@ class TemplateConfig:
     def __post_init__(self):
         _check(0 < self.wall <= 0.1, f"complete.interiors.template.wall = {self.wall} must be in (0, 0.1] m")
         _check(0 < self.front_thickness <= 0.1, "complete.interiors.template.front_thickness must be in (0, 0.1] m")
-        for k in ("drawer_side", "drawer_bottom", "drawer_top", "drawer_back_clearance", "cavity_inset",
+        for k in ("drawer_side", "drawer_bottom", "drawer_top", "drawer_back_clearance", "cavity_inset", "cavity_clearance",
                   "shelf_setback", "appliance_max_bottom"):
             _check(getattr(self, k) >= 0, f"complete.interiors.template.{k} = {getattr(self, k)} must be >= 0")
         _check(self.shelf_spacing > 0, "complete.interiors.template.shelf_spacing must be > 0")

@@ -169,11 +169,12 @@ def build_template(part: Part, template: str, start: float, depth: float, cfg: T
         body = part.id
     else:
         t = min(wall, cfg.max_wall_frac * min(a1 - a0, b1 - b0, depth))
+        zc = min(z0 + cfg.cavity_clearance, z1 - t - 1e-4)  # the sides start clear of the panel
         boxes += [("back", (a0, b0, z1 - t), (a1, b1, z1)),
-                  ("left", (a0, b0, z0), (a0 + t, b1, z1 - t)),
-                  ("right", (a1 - t, b0, z0), (a1, b1, z1 - t)),
-                  ("bottom", (a0 + t, b0, z0), (a1 - t, b0 + t, z1 - t)),
-                  ("top", (a0 + t, b1 - t, z0), (a1 - t, b1, z1 - t))]
+                  ("left", (a0, b0, zc), (a0 + t, b1, z1 - t)),
+                  ("right", (a1 - t, b0, zc), (a1, b1, z1 - t)),
+                  ("bottom", (a0 + t, b0, zc), (a1 - t, b0 + t, z1 - t)),
+                  ("top", (a0 + t, b1 - t, zc), (a1 - t, b1, z1 - t))]
         inner_h = (b1 - b0) - 2 * t
         n_shelves = 0
         if template == "cabinet" and shelves and z0 + cfg.shelf_setback < z1 - t:
