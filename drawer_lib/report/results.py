@@ -236,7 +236,7 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
                   else "every physical check passes on this scene (the file loads passive: a person's pull opens "
                   "each part; the benchmark kitchens' twins are not built by the pipeline)" if not n_fail
                   else f"{n_fail} physical check(s) fail on {t.get('n_parts_failing_checks')} part(s), reported in "
-                  "twin/checks.json (the twin is written all the same)")
+                  f"the twin's {sp.file('twin', 'checks').name} (the twin is written all the same)")
         return (f"{c['wall_s']:.0f} s + {t['wall_s']:.0f} s; {checks}; {t['sim_sim_steps_per_s']:.0f} steps/s; "
                 f"closed PSNR {t['closed_psnr']:.2f} dB, "
                 f"opened at half range {t['open_psnr']:.2f} dB (part region {t['open_region_psnr']:.2f}); interior "
