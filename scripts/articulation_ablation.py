@@ -27,8 +27,9 @@ from drawer_lib.articulation.pipeline import run_articulate
 from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.evaluate import confusion_matrix, score_kitchen, summarise
 from drawer_lib.bench.fit import fit_decisions, labelled_fronts
+from drawer_lib.config.compose import set_param
 from drawer_lib.config.typed import to_typed
-from drawer_lib.errors import InputError
+from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import BenchPaths, ScenePaths, capture_name
@@ -39,19 +40,11 @@ KEYS = ("precision", "recall", "ea_score", "emd", "precision_worst", "recall_wor
 
 
 def override(tree: dict, assignment: str) -> None:
-    """Set ``a.b.c=value`` (value parsed as YAML) in the nested dict ``tree``."""
-    key, sep, value = assignment.partition("=")
-    if not sep:
-        raise SystemExit(f"-S {assignment!r}: expected key=value")
-    *path, last = key.split(".")
-    node = tree
-    for k in path:
-        if not isinstance(node.get(k), dict):
-            raise SystemExit(f"-S {assignment!r}: no group {k!r} in params.yaml")
-        node = node[k]
-    if last not in node:
-        raise SystemExit(f"-S {assignment!r}: no key {last!r} in params.yaml")
-    node[last] = yaml.safe_load(value)
+    """:func:`~drawer_lib.config.compose.set_param`, a bad assignment a one-line exit."""
+    try:
+        set_param(tree, assignment)
+    except ConfigError as e:
+        raise SystemExit(str(e)) from None
 
 
 def articulate(cfg: ArticulateConfig, src: ScenePaths, dst: ScenePaths, weights: dict) -> float:

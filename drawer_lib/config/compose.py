@@ -69,3 +69,25 @@ def compose_if_changed(conf_dir: Path, out: Path, stamp: Path, overrides: list[s
     stamp.parent.mkdir(parents=True, exist_ok=True)
     stamp.write_text(json.dumps({"key": key, "path": str(out.resolve()), "out": hashlib.sha256(text.encode()).hexdigest()}))
     return True
+
+
+def set_param(tree: dict, assignment: str) -> None:
+    """Set ``a.b.c=value`` (value parsed as YAML) in the nested params dict ``tree`` (a loaded
+    ``params.yaml``), as the scripts' ``-S`` options do; a malformed assignment or a key that
+    ``tree`` lacks is a :class:`~drawer_lib.errors.ConfigError` naming it."""
+    import yaml
+
+    from drawer_lib.errors import ConfigError
+
+    key, sep, value = assignment.partition("=")
+    if not sep:
+        raise ConfigError(f"-S {assignment!r}: expected key=value")
+    *path, last = key.split(".")
+    node = tree
+    for k in path:
+        if not isinstance(node.get(k), dict):
+            raise ConfigError(f"-S {assignment!r}: no group {k!r} in params.yaml")
+        node = node[k]
+    if last not in node:
+        raise ConfigError(f"-S {assignment!r}: no key {last!r} in params.yaml")
+    node[last] = yaml.safe_load(value)

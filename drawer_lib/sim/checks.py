@@ -82,7 +82,7 @@ def _first_time(q: np.ndarray, level: float, dt: float) -> float | None:
     return float((hit[0] + 1) * dt) if len(hit) else None
 
 
-def _owners(m: mujoco.MjModel, twin: TwinModel) -> tuple[np.ndarray, list[str]]:
+def geom_owners(m: mujoco.MjModel, twin: TwinModel) -> tuple[np.ndarray, list[str]]:
     """Per geom the index of its owner in ``names`` = ["static", *part ids, *rigid ids]
     (-1 for geoms that do not collide: visual ones)."""
     names = [STATIC, *(p.id for p in twin.parts), *(r.id for r in twin.rigid)]
@@ -96,7 +96,7 @@ def _owners(m: mujoco.MjModel, twin: TwinModel) -> tuple[np.ndarray, list[str]]:
     return owner, names
 
 
-def _collide_all(m: mujoco.MjModel, owner: np.ndarray) -> mujoco.MjModel:
+def collide_all(m: mujoco.MjModel, owner: np.ndarray) -> mujoco.MjModel:
     """A copy of ``m`` where every collision geom collides with every other, without margins."""
     mc = copy.deepcopy(m)
     col = owner >= 0
@@ -267,8 +267,8 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     fails = _Failures()
     report: dict = {"n_parts": len(twin.parts), "n_rigid": len(twin.rigid), "parts": {}, "rigid": {}}
     ids = _resolve(m, twin, fails)
-    owner, names = _owners(m, twin)
-    mc = _collide_all(m, owner)
+    owner, names = geom_owners(m, twin)
+    mc = collide_all(m, owner)
     # the pull test meets the file as it loads; the drive test turns the drives on
     m_pull = m
     m_drive = set_drives(copy.deepcopy(m), True)

@@ -40,36 +40,32 @@ class RepairConfig:
 
 def static_part_penetrations(model: TwinModel, sim: SimConfig) -> list[tuple[int, str, float, np.ndarray]]:
     """At q = 0, every (static collision piece k, part id, depth m > 0, unit normal pointing from
-    the static piece into the part) whose geoms overlap, deepest per pair, every pair of geoms
-    tested (contacts of the model as built do not matter)."""
+    the static piece into the part) whose collision geoms overlap, deepest per pair, every pair
+    of collision geoms tested (the contacts of the model as built do not matter)."""
+    from drawer_lib.sim.checks import collide_all, geom_owners
     from drawer_lib.sim.mjcf import build_spec, compile_spec
 
     m = compile_spec(build_spec(model, sim))
-    m.geom_contype[:] = 1
-    m.geom_conaffinity[:] = 1
-    m.geom_margin[:] = 0.0
-    m.geom_gap[:] = 0.0
-    m.body_contype[:] = 1
-    m.body_conaffinity[:] = 1
-    d = mujoco.MjData(m)
-    mujoco.mj_fwdPosition(m, d)
-    static_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "static")
-    part_of = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, p.id): p.id for p in model.parts}
+    owner, names = geom_owners(m, model)  # collision geoms only: 0 static, 1.. the parts
+    mc = collide_all(m, owner)
+    d = mujoco.MjData(mc)
+    mujoco.mj_fwdPosition(mc, d)
+    n_parts = len(model.parts)
     best: dict[tuple[int, str], tuple[float, np.ndarray]] = {}
     for c in d.contact[: d.ncon]:
         g1, g2 = int(c.geom[0]), int(c.geom[1])
-        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        o1, o2 = owner[g1], owner[g2]
         depth = -float(c.dist)
         if depth <= 0:
             continue
         n = np.asarray(c.frame[:3], np.float64)  # from geom1 to geom2
-        if b1 == static_body and b2 in part_of:
-            gs, pid = g1, part_of[b2]
-        elif b2 == static_body and b1 in part_of:
-            gs, pid, n = g2, part_of[b1], -n
+        if o1 == 0 and 1 <= o2 <= n_parts:
+            gs, pid = g1, names[o2]
+        elif o2 == 0 and 1 <= o1 <= n_parts:
+            gs, pid, n = g2, names[o1], -n
         else:
             continue
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, gs) or ""
+        name = mujoco.mj_id2name(mc, mujoco.mjtObj.mjOBJ_GEOM, gs) or ""
         if not name.startswith("static/col"):
             continue
         k = int(name.removeprefix("static/col"))

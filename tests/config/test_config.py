@@ -195,3 +195,15 @@ def test_compose_if_changed_skips_only_when_conf_and_the_written_file_are_unchan
     assert compose_if_changed(conf, out, stamp, ["seed=3"]) and "seed: 3" in out.read_text()  # overrides count
     stamp.write_text("not json")  # a broken stamp is only a cache miss
     assert compose_if_changed(conf, out, stamp) and not compose_if_changed(conf, out, stamp)
+
+
+def test_set_param_sets_a_nested_key_from_yaml_and_names_a_bad_one():
+    from drawer_lib.config.compose import set_param
+
+    tree = {"sim": {"contact": {"part_static": False}, "timestep": 0.002}}
+    set_param(tree, "sim.contact.part_static=true")
+    set_param(tree, "sim.timestep=0.001")
+    assert tree == {"sim": {"contact": {"part_static": True}, "timestep": 0.001}}
+    for bad, what in (("sim.timestep", "key=value"), ("sim.nope.x=1", "no group 'nope'"), ("sim.dt=1", "no key 'dt'")):
+        with pytest.raises(ConfigError, match=what):
+            set_param(tree, bad)
