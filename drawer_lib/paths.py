@@ -41,6 +41,7 @@ LAYOUT = {
     "evaluate": {"dir": "evaluate", "matches": "evaluate/matches.json"},
     "complete": {"dir": "complete", "index": "complete/complete.json", "meshes": "complete/meshes",
                  "collision": "complete/collision", "gaussians": "complete/gaussians"},
+    "robot": {"dir": "robot", "attempts": "robot/attempts.json", "dataset": "robot/dataset"},
     "simulate": {"dir": "simulate", "tracks": "simulate/tracks.npz", "motion": "simulate/motion.json"},
     "stability": {"dir": "stability", "matrix": "stability/matrix.csv", "heatmap": "stability/heatmap.png",
                   "choice": "stability/choice.json"},

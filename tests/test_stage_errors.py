@@ -47,6 +47,13 @@ def test_stability_and_simulate_name_what_is_missing(tmp_path):
     _assert_named_error(run_stage("stability", tmp_path, "stability.integrators=[verlet]"), "verlet")
 
 
+def test_robot_names_what_is_missing_and_a_bad_key(tmp_path):
+    (tmp_path / "out" / "kitchen_tiny").mkdir(parents=True)
+    _assert_named_error(run_stage("robot", tmp_path), "scene.xml", "twin")
+    assert not (tmp_path / "out" / "kitchen_tiny" / "robot").exists()
+    _assert_named_error(run_stage("robot", tmp_path, "robot.open_fraction=1.5"), "open_fraction")
+
+
 def test_misspelt_scene_key_is_named(tmp_path, exact_capture):
     import yaml
 

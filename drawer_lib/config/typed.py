@@ -50,6 +50,15 @@ def _convert(tp: Any, v: Any, where: str, strict: bool) -> Any:
             raise ConfigError(f"{where}: expected a list, got {v!r}")
         (item,) = typing.get_args(tp) or (Any,)
         return [_convert(item, x, f"{where}[{i}]", strict) for i, x in enumerate(v)]
+    if origin is tuple:
+        if not isinstance(v, (list, tuple)):
+            raise ConfigError(f"{where}: expected a list, got {v!r}")
+        args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(args[0], x, f"{where}[{i}]", strict) for i, x in enumerate(v))
+        if len(args) != len(v):
+            raise ConfigError(f"{where}: expected {len(args)} values, got {v!r}")
+        return tuple(_convert(a, x, f"{where}[{i}]", strict) for i, (a, x) in enumerate(zip(args, v)))
     if origin is dict:
         if not isinstance(v, dict):
             raise ConfigError(f"{where}: expected a mapping, got {v!r}")

@@ -30,6 +30,10 @@ Cases (:func:`extreme_cases`; the twin's own parts come from :func:`twin_case`):
 * ``zero_range``: a drawer whose range is zero wide. MuJoCo refuses ``range="0 0"`` (the case
   records that) so it runs the narrowest range it accepts, [0, 1e-9] m, driven at 0.5 m/s into
   its limit; exact: q = 0 (the error is how far the limit lets it through).
+* ``robot_grasp``: the robot stage's contact-rich grasp: the Panda's fingers squeezing a 14 mm
+  bar handle (40 N per finger) on a 3 kg drawer while the arm's joint servos pull it 5 cm
+  (a step of their targets); observed: the drawer's joint and the TCP's position; RK4
+  reference.
 * ``axis_near_x``: the ``tiny`` hinge about the axis (1e-9, 0, 1) and ``axis_non_unit`` about
   (0, 0, 2.5): MuJoCo normalises axes, so both are the unit-axis closed form.
 """
@@ -369,6 +373,47 @@ def _zero_range_case(drive_tau: float = 0.02, speed: float = 0.5) -> Case:
                 exact=lambda t: np.zeros((len(t), 1)), setup=setup, vmax=50.0, note=note)
 
 
+def _robot_grasp_case(duration: float = 0.6) -> Case:
+    from drawer_lib.robot.ik import PandaIK
+    from drawer_lib.robot.panda import FINGER_KP, FINGER_MAX, BasePose, attach_robot, robot_index
+
+    z, proud, half = 0.7, 0.035, 0.007  # the bar's height, its face's standoff, its half thickness (m)
+    xml = f"""<mujoco><option gravity="0 0 -9.81"/><worldbody>
+      <body name="drawer"><joint name="slide" type="slide" axis="0 -1 0" range="0 0.4" damping="10"
+          armature="0.05" frictionloss="1" solreflimit="0.004 1"/>
+        <inertial pos="0 0.2 {z}" mass="3" diaginertia="0.05 0.05 0.05"/>
+        <geom type="box" pos="0 0.01 {z}" size="0.25 0.01 0.1" contype="2" conaffinity="12"/>
+        <geom type="box" pos="0 {-(proud - half):.4f} {z}" size="0.08 {half} {half}" contype="2" conaffinity="12"/>
+      </body></worldbody></mujoco>"""
+    spec = mujoco.MjSpec.from_string(xml)
+    base = BasePose((0.0, -(proud - half) - 0.6, z - 0.55), math.pi / 2)
+    attach_robot(spec, base, pedestal=False)
+    m = spec.compile()
+    ik = PandaIK()
+    T = np.eye(4)
+    T[:3, :3] = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])  # x, y (closing: +z), z (approach: +y)
+    T[:3, 3] = [0.0, -(proud - half), z]
+    Binv = np.linalg.inv(base.matrix())
+    q_grip, _, _ = ik.solve(Binv @ T, np.zeros(7) + [0, -0.3, 0, -2.2, 0, 1.9, math.pi / 4], iters=200)
+    T[1, 3] -= 0.05
+    q_pull, _, _ = ik.solve(Binv @ T, q_grip, iters=200)
+    ix = robot_index(m)
+    slide = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "slide")
+
+    def setup(m, d):
+        d.qpos[ix.arm_qpos] = q_grip
+        d.qpos[ix.finger_qpos] = FINGER_MAX
+        d.ctrl[ix.arm_act] = q_pull
+        d.ctrl[ix.finger_act] = -40.0 / FINGER_KP
+
+    def observe(m, d):
+        return np.concatenate([d.qpos[m.jnt_qposadr[slide]: m.jnt_qposadr[slide] + 1], d.site_xpos[ix.tcp]])
+
+    return Case("robot_grasp", "extreme", m, duration, observe, "m", np.ones(4), ["drawer_q", "tcp_x", "tcp_y", "tcp_z"],
+                setup=setup, vmax=50.0, note="the Panda squeezing a bar handle (40 N a finger) and pulling a 3 kg "
+                                             "drawer 5 cm by a step of its joint targets")
+
+
 def extreme_cases() -> list[Case]:
     """The extreme cases of the module doc."""
     tiny = Hinge(inertia=1e-5, stiffness=1.0, damping=1.0, armature=1e-6, q0=0.5)
@@ -383,6 +428,7 @@ def extreme_cases() -> list[Case]:
                    note="position servo kp 1e4, kv 20 (critically damped)"),
         _contact_case(),
         _zero_range_case(),
+        _robot_grasp_case(),
         hinge_case("axis_near_x", Hinge(inertia=0.35, stiffness=10.0, damping=1.0), 1.0, axis=(1e-9, 0.0, 1.0),
                    note="axis (1e-9, 0, 1)"),
         hinge_case("axis_non_unit", Hinge(inertia=0.35, stiffness=10.0, damping=1.0), 1.0, axis=(0.0, 0.0, 2.5),

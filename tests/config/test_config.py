@@ -155,6 +155,20 @@ def test_to_typed_errors_name_the_key():
     assert to_typed(Outer, {"name": "n"}, "f.yaml:", strict=False).inner is None
 
 
+def test_to_typed_reads_tuples_of_any_length_and_fixed_ones():
+    @dataclass(frozen=True)
+    class T:
+        xs: tuple[float, ...] = (1.0,)
+        wh: tuple[int, int] = (1, 2)
+
+    t = to_typed(T, {"xs": [1, 2.5, 3], "wh": [96, 72]}, "t:")
+    assert t.xs == (1.0, 2.5, 3.0) and isinstance(t.xs[0], float) and t.wh == (96, 72)
+    with pytest.raises(ConfigError, match="t:wh: expected 2 values"):
+        to_typed(T, {"xs": [1], "wh": [1, 2, 3]}, "t:")
+    with pytest.raises(ConfigError, match=r"t:xs\[1\]: expected a number"):
+        to_typed(T, {"xs": [1, "a"], "wh": [1, 2]}, "t:")
+
+
 def test_scene_source_must_have_its_block():
     with pytest.raises(ConfigError, match="no 'video' block"):
         SceneConfig(source="video")

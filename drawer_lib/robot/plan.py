@@ -1,0 +1,258 @@
+"""Planning a demonstration in the twin: where the robot stands, and the TCP path that grasps a
+part and opens (then closes) it along the part's inferred joint.
+
+Frames and units: world frame of the twin (m, rad, +z up). A grasp (``twin.json``'s ``grasp``,
+at q = 0) gives the TCP frame: z = ``approach`` (into the front), y = ``closing_axis``, x = y × z.
+While the part moves, the TCP rides rigidly with the part: at joint value q its pose is
+``joint_transform(q) @ grasp pose``. Because the gripper is symmetric, the frame turned half a
+turn about the approach is the same grasp; and a bar can be taken at a pitch about its own
+long axis (the TCP x of a handle, y of a free edge), which is how a floor-standing arm reaches
+a low drawer's bar from above. Both are free choices of the base search.
+
+The path (:func:`task_path`) is a list of control ticks at ``fps``: ``approach`` (from
+``pregrasp`` m behind the grasp, gripper open), ``grip`` (fingers close), ``open`` (the joint
+from 0 to ``open_fraction`` x the upper limit, smoothstep, at most ``speed_m`` / ``speed_rad``),
+``hold``; then ``close`` (back to 0), ``release`` (fingers open), ``retreat``.
+
+The base search (:func:`find_base`) tries base poses in front of the part (distance, lateral
+offset, height, grasp pitch and flip, nearest first) and keeps the first where the IK reaches
+every key pose of the path within ``ik_tol_m`` / ``ik_tol_deg`` and the arm, at those poses,
+touches neither the static scene nor another part deeper than ``collision_depth`` (the hand may
+touch the part it holds).
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from jaxtyping import Float
+
+from drawer_lib.errors import ConfigError
+from drawer_lib.geometry.joints import joint_transform
+from drawer_lib.geometry.rotations import axis_angle_to_matrix
+from drawer_lib.io.parts import Part
+from drawer_lib.robot.ik import PandaIK
+from drawer_lib.robot.panda import FINGER_KP, FINGER_MAX, HOME, BasePose
+
+PHASES = ("approach", "grip", "open", "hold", "close", "release", "retreat")
+
+
+@dataclass(frozen=True)
+class BaseSearch:
+    """Candidate base poses, tried in this order of nesting (outermost first): ``heights`` (m,
+    the grasp's height above the base, the base clipped to the floor and to ``max_base_z``),
+    ``distances`` (m, horizontal, from the grasp back along the approach), ``lateral`` (m,
+    sideways; for a hinged part, positive is away from the hinge), ``pitches_deg`` (the grasp
+    turned about the handle's long axis)."""
+
+    heights: tuple[float, ...] = (0.55, 0.7, 0.4, 0.25)
+    distances: tuple[float, ...] = (0.6, 0.5, 0.7, 0.8)
+    lateral: tuple[float, ...] = (0.0, 0.15, -0.15, 0.3, -0.3)
+    pitches_deg: tuple[float, ...] = (0.0, 35.0, -35.0, 60.0)
+    max_base_z: float = 1.4
+    floor_z: float = 0.0
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The robot stage (``robot`` group). Speeds m/s or rad/s, times s, lengths m.
+
+    ``open_fraction``: the opening asked of each part, of its upper limit; a part ``opened``
+    when its joint reaches ``success_fraction`` x that target, ``closed`` when it is back below
+    (1 - ``success_fraction``) x it. ``fps``: control ticks and recorded frames per second.
+    ``grip_force``: what each finger squeezes with (N; the Panda hand's continuous force is
+    70 N); ``camera``: width x height of the recorded stream (0 turns it off).
+    ``transfer``: replay every demonstration in the ground-truth kitchen when the scene has one.
+    ``max_parts``: at most this many parts per scene (None: all)."""
+
+    open_fraction: float = 0.8
+    success_fraction: float = 0.85
+    pregrasp: float = 0.1
+    approach_speed: float = 0.1
+    speed_m: float = 0.15
+    speed_rad: float = 0.5
+    grip_time: float = 0.6
+    hold_time: float = 0.4
+    fps: int = 25
+    grip_force: float = 40.0
+    ik_tol_m: float = 0.005
+    ik_tol_deg: float = 3.0
+    collision_depth: float = 0.005
+    camera: tuple[int, ...] = (96, 72)
+    transfer: bool = True
+    max_parts: int | None = None
+    base: BaseSearch = field(default_factory=BaseSearch)
+
+    def __post_init__(self):
+        if not (0 < self.open_fraction <= 1 and 0 < self.success_fraction <= 1):
+            raise ConfigError("robot: open_fraction and success_fraction must be in (0, 1]")
+        for k in ("pregrasp", "approach_speed", "speed_m", "speed_rad", "grip_time", "hold_time", "grip_force",
+                  "ik_tol_m", "ik_tol_deg", "collision_depth"):
+            v = getattr(self, k)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"robot.{k} = {v} must be finite and > 0")
+        if not 1 <= self.fps <= 1000:
+            raise ConfigError(f"robot.fps = {self.fps} must be in [1, 1000]")
+        if len(self.camera) != 2 or min(self.camera) < 0:
+            raise ConfigError(f"robot.camera = {self.camera} must be [width, height] >= 0")
+
+
+def grasp_pose(grasp: dict, pitch: float = 0.0, flip: bool = False) -> Float[np.ndarray, "4 4"]:
+    """The TCP pose (world, q = 0) of a ``twin.json`` grasp, turned by ``pitch`` (rad) about the
+    handle's long axis and, with ``flip``, half a turn about the approach."""
+    z = np.asarray(grasp["approach"], np.float64)
+    z /= np.linalg.norm(z)
+    y = np.asarray(grasp["closing_axis"], np.float64)
+    y = y - (y @ z) * z
+    y /= np.linalg.norm(y)
+    x = np.cross(y, z)
+    R = np.column_stack([x, y, z])
+    if pitch:
+        long_axis = x if grasp.get("kind", "handle") == "handle" else y
+        R = axis_angle_to_matrix(long_axis, pitch) @ R
+    if flip:
+        R = R @ np.diag([-1.0, -1.0, 1.0])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = grasp["position"]
+    return T
+
+
+def smoothstep(s: float | np.ndarray) -> float | np.ndarray:
+    """3 s^2 - 2 s^3 on [0, 1] (clipped): 0 to 1 with zero slope at both ends."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * (3 - 2 * s)
+
+
+@dataclass
+class Tick:
+    """One control tick: time (s), phase, the TCP target (4x4 world), the gripper command
+    (m, each finger's opening) and the part's joint value the plan expects."""
+
+    t: float
+    phase: str
+    tcp: np.ndarray
+    finger: float
+    q_part: float
+
+
+def task_path(part: Part, grasp_T: np.ndarray, cfg: RobotConfig) -> list[Tick]:
+    """The control ticks of the open-then-close demonstration of ``part`` (module docstring)."""
+    dt = 1.0 / cfg.fps
+    hi = part.limits[1]
+    q_goal = cfg.open_fraction * hi
+    speed = cfg.speed_rad if part.kind == "revolute" else cfg.speed_m
+    approach = grasp_T[:3, 2]
+    ticks: list[Tick] = []
+    t = 0.0
+
+    def seg(phase: str, duration: float, pose_of, finger_of, q_of):
+        nonlocal t
+        n = max(1, math.ceil(duration / dt))
+        for k in range(1, n + 1):
+            s = k / n
+            ticks.append(Tick(t + k * dt, phase, pose_of(s), finger_of(s), q_of(s)))
+        t += n * dt
+
+    def at_q(q):
+        return joint_transform(part.kind, np.asarray(part.axis.origin), np.asarray(part.axis.direction), q) @ grasp_T
+
+    pre = grasp_T.copy()
+    pre[:3, 3] -= cfg.pregrasp * approach
+    closed = -cfg.grip_force / FINGER_KP  # below closed: the finger servos squeeze (panda.py)
+    ticks.append(Tick(0.0, "approach", pre, FINGER_MAX, 0.0))
+
+    def lerp_pose(a, b):
+        return lambda s: np.block([[a[:3, :3], (a[:3, 3] + smoothstep(s) * (b[:3, 3] - a[:3, 3]))[:, None]],
+                                   [np.zeros((1, 3)), np.ones((1, 1))]])
+
+    seg("approach", 1.5 * cfg.pregrasp / cfg.approach_speed, lerp_pose(pre, grasp_T), lambda s: FINGER_MAX, lambda s: 0.0)
+    seg("grip", cfg.grip_time, lambda s: grasp_T, lambda s: FINGER_MAX + (closed - FINGER_MAX) * min(1.0, 2 * s),
+        lambda s: 0.0)
+    t_move = 1.5 * q_goal / speed  # smoothstep's peak speed is 1.5 x its mean
+    seg("open", t_move, lambda s: at_q(q_goal * smoothstep(s)), lambda s: closed, lambda s: q_goal * smoothstep(s))
+    seg("hold", cfg.hold_time, lambda s: at_q(q_goal), lambda s: closed, lambda s: q_goal)
+    seg("close", t_move, lambda s: at_q(q_goal * (1 - smoothstep(s))), lambda s: closed,
+        lambda s: q_goal * (1 - smoothstep(s)))
+    seg("release", cfg.grip_time, lambda s: grasp_T, lambda s: closed + (FINGER_MAX - closed) * min(1.0, 2 * s),
+        lambda s: 0.0)
+    seg("retreat", 1.5 * cfg.pregrasp / cfg.approach_speed, lerp_pose(grasp_T, pre), lambda s: FINGER_MAX,
+        lambda s: 0.0)
+    return ticks
+
+
+def key_ticks(ticks: list[Tick], n_path: int = 5) -> list[int]:
+    """Indices of the ticks the base search checks: the pregrasp, the grasp and ``n_path``
+    poses along the opening."""
+    first = {ph: next(i for i, tk in enumerate(ticks) if tk.phase == ph) for ph in ("grip", "open", "hold")}
+    opening = np.linspace(first["open"], first["hold"], n_path).round().astype(int).tolist()
+    return sorted({0, first["grip"], *opening})
+
+
+def solve_path(ik: PandaIK, base: BasePose, ticks: list[Tick], idx: list[int], q0: np.ndarray | None = None,
+               give_up: tuple[float, float] | None = None) -> tuple[np.ndarray, float, float]:
+    """Arm joints [len(idx), 7] at the ticks ``idx`` (each solve warm-started from the last);
+    the worst position (m) and rotation (rad) error. ``give_up`` = (m, rad): stop at the first
+    tick beyond it (the joints returned are then fewer)."""
+    Binv = np.linalg.inv(base.matrix())
+    q = HOME.copy() if q0 is None else q0
+    out, ep_max, er_max = [], 0.0, 0.0
+    for k, i in enumerate(idx):
+        q, ep, er = ik.solve(Binv @ ticks[i].tcp, q, iters=100 if k == 0 else 40)
+        out.append(q)
+        ep_max, er_max = max(ep_max, ep), max(er_max, er)
+        if give_up is not None and (ep > give_up[0] or er > give_up[1]):
+            break
+    return np.array(out), ep_max, er_max
+
+
+def base_candidates(part: Part, grasp: dict, cfg: BaseSearch, q_goal: float = 0.0):
+    """(BasePose, pitch rad, flip) in the order of :class:`BaseSearch`, facing the part; heights
+    are counted from the middle of the grasp's path to ``q_goal`` (a flap's handle rises)."""
+    a = np.asarray(grasp["approach"], np.float64)
+    a_h = np.array([a[0], a[1], 0.0])
+    if np.linalg.norm(a_h) < 1e-6:
+        return
+    a_h /= np.linalg.norm(a_h)
+    side = np.array([-a_h[1], a_h[0], 0.0])
+    if part.kind == "revolute" and part.axis is not None:  # lateral + is away from the hinge
+        rel = np.asarray(grasp["position"]) - np.asarray(part.axis.origin)
+        if rel @ side < 0:
+            side = -side
+    g = np.asarray(grasp["position"], np.float64)
+    g_end = joint_transform(part.kind, np.asarray(part.axis.origin), np.asarray(part.axis.direction), q_goal)
+    z_mid = 0.5 * (g[2] + (g_end[:3, :3] @ g + g_end[:3, 3])[2])
+    yaw = math.atan2(a_h[1], a_h[0])
+    seen = set()
+    for h in cfg.heights:
+        z = min(max(z_mid - h, cfg.floor_z), cfg.max_base_z)
+        for d in cfg.distances:
+            for s in cfg.lateral:
+                p = g - d * a_h + s * side
+                key = (round(z, 3), d, s)
+                if key in seen:
+                    continue
+                seen.add(key)
+                for pitch in cfg.pitches_deg:
+                    for flip in (False, True):
+                        yield BasePose((float(p[0]), float(p[1]), float(z)), yaw), math.radians(pitch), flip
+
+
+def arm_collisions(m: mujoco.MjModel, d: mujoco.MjData, robot_geoms: frozenset[int], hand_geoms: frozenset[int],
+                   part_body: int, depth: float) -> list[tuple[str, str, float]]:
+    """Contacts of the robot with the scene deeper than ``depth`` (m) in ``d``'s current
+    contacts: (robot geom, other geom, penetration m); the hand touching body ``part_body`` (the
+    part it holds) is allowed."""
+    out = []
+    for c in d.contact[: d.ncon]:
+        g1, g2 = int(c.geom1), int(c.geom2)
+        if (g1 in robot_geoms) == (g2 in robot_geoms):
+            continue
+        r, o = (g1, g2) if g1 in robot_geoms else (g2, g1)
+        if r in hand_geoms and m.geom_bodyid[o] == part_body:
+            continue
+        if -float(c.dist) > depth:
+            out.append((mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, r) or str(r),
+                        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, o) or str(o), -float(c.dist)))
+    return out
