@@ -43,6 +43,8 @@ FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.
                # the stability study on the twin's parts at two timesteps; the report without the extremes' pytest run
                "stability.extremes=false", "stability.timesteps=[0.001,0.002]", "stability.integrators=[implicitfast,euler]",
                "stability.rtf_time=0.2", "report.extremes=false",
+               # the robot on two parts, no camera (its physics and dataset: tests/robot)
+               "robot.max_parts=2", "robot.camera=[0,0]",
                # the benchmark: kitchen 0 of each split, at kitchen_tiny's frames
                "bench.kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}"]
 

@@ -45,21 +45,23 @@ class PlanningScene:
         self.mount = np.array([self.m.jnt_qposadr[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, n)]
                                for n in _MOUNT_JOINTS])
 
-    def collisions(self, base: BasePose, q_arm: np.ndarray, part_id: str, q_part: float, depth: float
-                   ) -> list[tuple[str, str, float]]:
-        """The robot's contacts deeper than ``depth`` with the arm at ``q_arm``, its base at
-        ``base`` and part ``part_id`` at ``q_part`` (every other joint at 0)."""
+    def collisions(self, base: BasePose, q_arm: np.ndarray, part_id: str, q_part: float, depth: float,
+                   finger: float = FINGER_MAX) -> list[tuple[str, str, float]]:
+        """The robot's contacts deeper than ``depth`` with the arm at ``q_arm`` (fingers open by
+        ``finger`` m each),
+        its base at ``base`` and part ``part_id`` at ``q_part`` (every other joint at 0), the
+        part itself included."""
         d = self.d
         d.qpos[:] = self.m.qpos0
         d.qpos[self.mount] = [*base.pos, base.yaw]
         d.qpos[self.ix.arm_qpos] = q_arm
-        d.qpos[self.ix.finger_qpos] = FINGER_MAX
+        d.qpos[self.ix.finger_qpos] = finger
         pix = part_index(self.m, part_id)
         if pix["qpos"] >= 0:
             d.qpos[pix["qpos"]] = q_part
         mujoco.mj_kinematics(self.m, d)
         mujoco.mj_collision(self.m, d)
-        return arm_collisions(self.m, d, self.ix.geoms, self.ix.hand_geoms, pix["body"], depth)
+        return arm_collisions(self.m, d, self.ix.geoms, self.ix.hand_geoms, -1, depth)
 
 
 def light_visuals(spec: mujoco.MjSpec, max_faces: int) -> int:
@@ -153,12 +155,12 @@ def run_episode(m: mujoco.MjModel, ticks: list[Tick], actions: np.ndarray, part_
                 phases: tuple[str, ...], camera: tuple[int, int] = (0, 0)) -> Recording:
     """Simulate ``actions`` [T, 8] (per tick: arm joint targets, finger command) in ``m`` (a
     model of :func:`episode_model`), one tick per ``1 / fps`` of ``ticks``' times; the arm
-    starts at the first action's joints, fingers open. ``part_id``: the part whose joint is
+    starts at the first action's joints and finger command. ``part_id``: the part whose joint is
     recorded (None: none, its column is NaN)."""
     d = mujoco.MjData(m)
     ix = robot_index(m)
     d.qpos[ix.arm_qpos] = actions[0, :7]
-    d.qpos[ix.finger_qpos] = FINGER_MAX
+    d.qpos[ix.finger_qpos] = np.clip(actions[0, 7], 0.0, FINGER_MAX)
     d.ctrl[:] = 0.0
     mujoco.mj_forward(m, d)
     pix = part_index(m, part_id) if part_id is not None else {"qpos": -1, "body": -2}

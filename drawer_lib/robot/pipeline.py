@@ -45,8 +45,8 @@ from drawer_lib.robot.dataset import Episode, write_lerobot
 from drawer_lib.robot.execute import PlanningScene, Recording, episode_model, run_episode
 from drawer_lib.robot.ik import PandaIK
 from drawer_lib.robot.panda import ARM, FINGERS
-from drawer_lib.robot.plan import (PHASES, RobotConfig, base_candidates, grasp_pose, key_ticks, solve_path,
-                                   task_path)
+from drawer_lib.robot.plan import (PHASES, RobotConfig, base_candidates, grasp_pose, key_ticks, open_width,
+                                   solve_path, task_path)
 from drawer_lib.paths import stage_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
@@ -172,14 +172,16 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
         q_goal = cfg.open_fraction * p.limits[1]
         found, n_tried = None, 0
         if g is not None:
+            fo = open_width(g, cfg)
             for base, pitch, flip in base_candidates(p, g, cfg.base, q_goal):
                 n_tried += 1
                 G = grasp_pose(g, pitch, flip)
-                ticks = task_path(p, G, cfg)
+                ticks = task_path(p, G, cfg, fo)
                 idx = key_ticks(ticks)
                 qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
                 if ep > tol[0] or er > tol[1] or any(
-                        ps.collisions(base, q, p.id, ticks[i].q_part, cfg.collision_depth) for i, q in zip(idx, qs)):
+                        ps.collisions(base, q, p.id, ticks[i].q_part, cfg.collision_depth, fo)
+                        for i, q in zip(idx, qs)):
                     continue
                 qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
                 if ep <= 2 * tol[0] and er <= 2 * tol[1]:

@@ -17,8 +17,9 @@ from 0 to ``open_fraction`` x the upper limit, smoothstep, at most ``speed_m`` /
 The base search (:func:`find_base`) tries base poses in front of the part (distance, lateral
 offset, height, grasp pitch and flip, nearest first) and keeps the first where the IK reaches
 every key pose of the path within ``ik_tol_m`` / ``ik_tol_deg`` and the arm, at those poses,
-touches neither the static scene nor another part deeper than ``collision_depth`` (the hand may
-touch the part it holds).
+touches nothing deeper than ``collision_depth``: neither the static scene, another part, nor,
+with its fingers open, the part it is about to grasp (a pose whose fingers sit inside the front
+would be stopped there in simulation).
 """
 
 import math
@@ -62,7 +63,8 @@ class RobotConfig:
     when its joint reaches ``success_fraction`` x that target, ``closed`` when it is back below
     (1 - ``success_fraction``) x it. ``fps``: control ticks and recorded frames per second.
     ``grip_force``: what each finger squeezes with (N; the Panda hand's continuous force is
-    70 N); ``camera``: width x height of the recorded stream (0 turns it off).
+    70 N); ``finger_clearance``: the open fingers stand this far from the handle's sides (an
+    8 cm open gripper would strike the fronts above and below a drawer's bar); ``camera``: width x height of the recorded stream (0 turns it off).
     ``transfer``: replay every demonstration in the ground-truth kitchen when the scene has one.
     ``max_parts``: at most this many parts per scene (None: all)."""
 
@@ -76,6 +78,7 @@ class RobotConfig:
     hold_time: float = 0.4
     fps: int = 25
     grip_force: float = 40.0
+    finger_clearance: float = 0.015
     ik_tol_m: float = 0.005
     ik_tol_deg: float = 3.0
     collision_depth: float = 0.005
@@ -88,6 +91,7 @@ class RobotConfig:
         if not (0 < self.open_fraction <= 1 and 0 < self.success_fraction <= 1):
             raise ConfigError("robot: open_fraction and success_fraction must be in (0, 1]")
         for k in ("pregrasp", "approach_speed", "speed_m", "speed_rad", "grip_time", "hold_time", "grip_force",
+                  "finger_clearance",
                   "ik_tol_m", "ik_tol_deg", "collision_depth"):
             v = getattr(self, k)
             if not (math.isfinite(v) and v > 0):
@@ -137,8 +141,15 @@ class Tick:
     q_part: float
 
 
-def task_path(part: Part, grasp_T: np.ndarray, cfg: RobotConfig) -> list[Tick]:
-    """The control ticks of the open-then-close demonstration of ``part`` (module docstring)."""
+def open_width(grasp: dict, cfg: RobotConfig) -> float:
+    """Each finger's opening (m) before it closes on ``grasp``: half the handle's width plus the
+    clearance, at least 1 cm, at most the gripper's travel."""
+    return float(min(FINGER_MAX, max(0.01, float(grasp.get("width") or 0.0) / 2 + cfg.finger_clearance)))
+
+
+def task_path(part: Part, grasp_T: np.ndarray, cfg: RobotConfig, finger_open: float = FINGER_MAX) -> list[Tick]:
+    """The control ticks of the open-then-close demonstration of ``part`` (module docstring);
+    the fingers open to ``finger_open`` (m each, :func:`open_width`)."""
     dt = 1.0 / cfg.fps
     hi = part.limits[1]
     q_goal = cfg.open_fraction * hi
@@ -161,23 +172,24 @@ def task_path(part: Part, grasp_T: np.ndarray, cfg: RobotConfig) -> list[Tick]:
     pre = grasp_T.copy()
     pre[:3, 3] -= cfg.pregrasp * approach
     closed = -cfg.grip_force / FINGER_KP  # below closed: the finger servos squeeze (panda.py)
-    ticks.append(Tick(0.0, "approach", pre, FINGER_MAX, 0.0))
+    fo = finger_open
+    ticks.append(Tick(0.0, "approach", pre, fo, 0.0))
 
     def lerp_pose(a, b):
         return lambda s: np.block([[a[:3, :3], (a[:3, 3] + smoothstep(s) * (b[:3, 3] - a[:3, 3]))[:, None]],
                                    [np.zeros((1, 3)), np.ones((1, 1))]])
 
-    seg("approach", 1.5 * cfg.pregrasp / cfg.approach_speed, lerp_pose(pre, grasp_T), lambda s: FINGER_MAX, lambda s: 0.0)
-    seg("grip", cfg.grip_time, lambda s: grasp_T, lambda s: FINGER_MAX + (closed - FINGER_MAX) * min(1.0, 2 * s),
+    seg("approach", 1.5 * cfg.pregrasp / cfg.approach_speed, lerp_pose(pre, grasp_T), lambda s: fo, lambda s: 0.0)
+    seg("grip", cfg.grip_time, lambda s: grasp_T, lambda s: fo + (closed - fo) * min(1.0, 2 * s),
         lambda s: 0.0)
     t_move = 1.5 * q_goal / speed  # smoothstep's peak speed is 1.5 x its mean
     seg("open", t_move, lambda s: at_q(q_goal * smoothstep(s)), lambda s: closed, lambda s: q_goal * smoothstep(s))
     seg("hold", cfg.hold_time, lambda s: at_q(q_goal), lambda s: closed, lambda s: q_goal)
     seg("close", t_move, lambda s: at_q(q_goal * (1 - smoothstep(s))), lambda s: closed,
         lambda s: q_goal * (1 - smoothstep(s)))
-    seg("release", cfg.grip_time, lambda s: grasp_T, lambda s: closed + (FINGER_MAX - closed) * min(1.0, 2 * s),
+    seg("release", cfg.grip_time, lambda s: grasp_T, lambda s: closed + (fo - closed) * min(1.0, 2 * s),
         lambda s: 0.0)
-    seg("retreat", 1.5 * cfg.pregrasp / cfg.approach_speed, lerp_pose(grasp_T, pre), lambda s: FINGER_MAX,
+    seg("retreat", 1.5 * cfg.pregrasp / cfg.approach_speed, lerp_pose(grasp_T, pre), lambda s: fo,
         lambda s: 0.0)
     return ticks
 
@@ -243,7 +255,8 @@ def arm_collisions(m: mujoco.MjModel, d: mujoco.MjData, robot_geoms: frozenset[i
                    part_body: int, depth: float) -> list[tuple[str, str, float]]:
     """Contacts of the robot with the scene deeper than ``depth`` (m) in ``d``'s current
     contacts: (robot geom, other geom, penetration m); the hand touching body ``part_body`` (the
-    part it holds) is allowed."""
+    part it holds) is allowed (pass -1 to count it: a planned pose, fingers open, must not be
+    inside the part it is about to grasp)."""
     out = []
     for c in d.contact[: d.ncon]:
         g1, g2 = int(c.geom1), int(c.geom2)
