@@ -255,6 +255,24 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
 
     row("the simulated twin (`simulate`, `evaluate`)", sim, "[docs/twin.md](docs/twin.md)")
 
+    def robot() -> str:
+        m = run.metrics("robot")
+        n = m["robot_parts"]
+        kinds = sorted({k.removeprefix("robot_").removesuffix("_n") for k in m if k.startswith("robot_")
+                        and k.endswith("_n") and f"{k[:-2]}_opened" in m})
+        per = ", ".join(f"{k} {m[f'robot_{k}_opened']}/{m[f'robot_{k}_n']}" for k in kinds)
+        s = (f"a Panda opened {round(m['robot_open_success'] * n)}/{n} parts and closed "
+             f"{round(m['robot_close_success'] * n)}/{n} in the twin as it loads ({per})")
+        if "robot_transfer_success" in m:
+            fails = ", ".join(f"{k.removeprefix('robot_transfer_fail_').replace('_', ' ')} {v}" for k, v in m.items()
+                              if k.startswith("robot_transfer_fail_"))
+            s += (f"; replayed in the scene's own kitchen, {round(m['robot_transfer_success'] * n)}/{n} opened "
+                  f"({fails or 'no failure'})")
+        return s + (f"; {m.get('dataset_episodes', 0)} LeRobot episodes, {m.get('dataset_frames', 0)} frames, "
+                    f"{m.get('dataset_bytes', 0) / 1e6:.1f} MB; {m['wall_s']:.0f} s")
+
+    row("the robot (`robot`)", robot, "[docs/twin.md](docs/twin.md#the-robot-stage)")
+
     def stab() -> str:
         m, c = run.metrics("stability"), _read(sp.file("stability", "choice"))
         return (f"{m['n_cells']} cells ({m['n_cells_diverged']} diverged): {c['integrator']} at {1000 * c['timestep']:g} ms "
