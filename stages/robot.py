@@ -18,6 +18,7 @@ from drawer_lib.runner import main_guard, stage_run
 from drawer_lib.robot.pipeline import run_robot, scene_ground_truth
 from drawer_lib.robot.plan import RobotConfig
 from drawer_lib.sim.config import SimConfig
+from drawer_lib.stability.pipeline import read_choice
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
@@ -28,9 +29,16 @@ def main(cfg: DictConfig) -> None:
     sim = to_typed(SimConfig, cfg.sim, "sim")
     sc = to_typed(SceneConfig, cfg.scene, f"conf/scene/{scene}.yaml:", strict=False)
     src, dst = scene_paths(cfg, scene)
+    choice = src.file("stability", "choice")  # the integrator and timestep of the stability study
     with stage_run("robot", dst.stage_dir("robot"), seed=cfg.seed) as run:
+        option = None
+        if choice.is_file():
+            ch = read_choice(choice)
+            option = (ch["integrator"], float(ch["timestep"]))
+        else:
+            run.skip("stability_choice", f"{choice} is missing: the twin's own integrator and timestep")
         gt = scene_ground_truth(sc, sim) if rc.transfer else None
-        run.metrics.update(run_robot(rc, src.stage_dir("twin"), src.parts, run, src.file("stability", "choice"), gt))
+        run.metrics.update(run_robot(rc, src.stage_dir("twin"), src.parts, run, option, gt))
 
 
 if __name__ == "__main__":

@@ -474,7 +474,7 @@ def render(data: ReportData) -> tuple[str, str]:
     tr = _robot(data)
     add("motion", tr if tr.rows else None, "The robot stage: a Panda opens (to 80 % of the range) and closes each "
         "part in the twin as it loads; transfer: the same actions replayed in the scene's own kitchen "
-        "(robot/attempts.json has each part's reason).")
+        f"({LAYOUT['robot']['attempts']} has each part's reason).")
     add("opened", _opened(data), "Each part opened to half its range, rendered against the GT at the same opening.")
     for sc in data.scenes:
         if sc.sheet is not None:

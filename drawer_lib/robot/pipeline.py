@@ -50,7 +50,6 @@ from drawer_lib.robot.plan import (PHASES, RobotConfig, base_candidates, grasp_p
 from drawer_lib.paths import stage_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
-from drawer_lib.stability.pipeline import read_choice
 
 COLLISION_FAIL = 0.01  # m: an arm contact deeper than this is a collision failure
 EMPTY_GRIP = 0.003  # m: fingers closer than this hold nothing
@@ -134,9 +133,11 @@ def _episodes(rec: Recording, part: Part, camera: bool) -> list[Episode]:
     return out
 
 
-def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun, choice_path: Path | None,
+def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun, option: tuple[str, float] | None,
               gt: GroundTruth | None) -> dict:
-    """The stage (module docstring): writes ``attempts.json`` and the dataset; returns metrics."""
+    """The stage (module docstring): writes ``attempts.json`` and the dataset; returns metrics.
+    ``option``: (integrator, timestep s) to simulate with, the stability study's choice (None:
+    the twin's own)."""
     xml, _ = load_twin(twin_dir, parts_path)
     index_path = Path(twin_dir) / stage_name("twin", "index")
     if not index_path.is_file():
@@ -145,10 +146,8 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
     parts = [p for p in read_parts(parts_path).parts if p.articulated]
     if cfg.max_parts is not None:
         parts = parts[: cfg.max_parts]
-    option = None
-    if choice_path is not None and Path(choice_path).is_file():
-        ch = read_choice(choice_path)
-        option = (INTEGRATOR_ENUM[ch["integrator"]], float(ch["timestep"]))
+    if option is not None:
+        option = (INTEGRATOR_ENUM[option[0]], float(option[1]))
 
     def twin_spec():
         return mujoco.MjSpec.from_file(str(xml))
