@@ -18,7 +18,7 @@ from drawer_lib.runner import main_guard, stage_run
 from drawer_lib.robot.pipeline import run_robot, scene_ground_truth
 from drawer_lib.robot.plan import RobotConfig
 from drawer_lib.sim.config import SimConfig
-from drawer_lib.stability.pipeline import read_choice
+from drawer_lib.stability.pipeline import choice_option
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
@@ -31,11 +31,8 @@ def main(cfg: DictConfig) -> None:
     src, dst = scene_paths(cfg, scene)
     choice = src.file("stability", "choice")  # the integrator and timestep of the stability study
     with stage_run("robot", dst.stage_dir("robot"), seed=cfg.seed) as run:
-        option = None
-        if choice.is_file():
-            ch = read_choice(choice)
-            option = (ch["integrator"], float(ch["timestep"]))
-        else:
+        option = choice_option(choice) if choice.is_file() else None
+        if option is None:
             run.skip("stability_choice", f"{choice} is missing: the twin's own integrator and timestep")
         gt = scene_ground_truth(sc, sim) if rc.transfer else None
         run.metrics.update(run_robot(rc, src.stage_dir("twin"), src.parts, run, option, gt))

@@ -109,7 +109,7 @@ def write_lerobot(root: Path, episodes: list[Episode], features: dict[str, dict]
     schema = pa.schema([(k, arrow_type(f)) for k, f in feats.items()])
     data_file = root / DATA_PATH.format(chunk_index=0, file_index=0)
     data_file.parent.mkdir(parents=True, exist_ok=True)
-    rows, ep_rows, index = [], [], 0
+    ep_rows, index = [], 0
     all_cols: dict[str, list[np.ndarray]] = {k: [] for k in feats}
     with pq.ParquetWriter(data_file, schema, compression="snappy") as w:
         for e, ep in enumerate(episodes):
@@ -137,7 +137,6 @@ def write_lerobot(root: Path, episodes: list[Episode], features: dict[str, dict]
                             "data/file_index": 0, "dataset_from_index": index, "dataset_to_index": index + T,
                             "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0})
             index += T
-            rows.append(T)
     ep_file = root / EPISODES_PATH.format(chunk_index=0, file_index=0)
     ep_file.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(pa.Table.from_pylist(ep_rows), ep_file)

@@ -7,20 +7,13 @@ The solver works on the robot alone, base at the origin; a world target is broug
 base frame first (``inv(base) @ target``), so one compiled model serves every base pose.
 """
 
-import math
-
 import mink
 import mujoco
 import numpy as np
 from jaxtyping import Float
 
+from drawer_lib.geometry.rotations import rotation_angle
 from drawer_lib.robot.panda import FINGER_MAX, HOME, TCP, panda_spec
-
-
-def rotation_angle(Ra: np.ndarray, Rb: np.ndarray) -> float:
-    """The angle (rad) of the rotation between two rotation matrices."""
-    c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
-    return float(math.acos(min(1.0, max(-1.0, c))))
 
 
 class PandaIK:
@@ -59,7 +52,7 @@ class PandaIK:
         for _ in range(iters):
             T = self.fk(self.conf.q[:7])
             ep = float(np.linalg.norm(T[:3, 3] - target[:3, 3]))
-            er = rotation_angle(T[:3, :3], target[:3, :3])
+            er = float(rotation_angle(T[:3, :3], target[:3, :3]))
             if ep < tol_m and er < tol_rad:
                 break
             try:
@@ -70,4 +63,4 @@ class PandaIK:
             self.conf.integrate_inplace(v, self.dt)
         T = self.fk(self.conf.q[:7])
         return (self.conf.q[:7].copy(), float(np.linalg.norm(T[:3, 3] - target[:3, 3])),
-                rotation_angle(T[:3, :3], target[:3, :3]))
+                float(rotation_angle(T[:3, :3], target[:3, :3])))

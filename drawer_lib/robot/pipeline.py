@@ -102,10 +102,7 @@ def _transfer_reason(twin: Part, gt: Part | None, rec: Recording | None, opened:
         return "wrong axis"
     if twin.kind == "revolute" and hinge_side(twin) != hinge_side(gt):
         return "wrong hinge side"
-    if rec is None:
-        return "not run"
-    r = _twin_reason(rec, False)
-    return r
+    return "not run" if rec is None else _twin_reason(rec, False)
 
 
 FEATURES_BASE = {
@@ -190,9 +187,9 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
         t_plan += time.perf_counter() - t0
         if found is None:
             a["twin"] = {"opened": False, "closed": False, "reason": "unreachable" if g else "no grasp"}
-            if p.id in matched or gt is not None:
-                a["transfer"] = {"opened": False, "reason": "failed in the twin", "gt_id": getattr(matched.get(p.id),
-                                                                                                  "id", None)}
+            if gt is not None and cfg.transfer:
+                gp = matched.get(p.id)
+                a["transfer"] = {"opened": False, "reason": "failed in the twin", "gt_id": gp.id if gp else None}
             attempts.append(a)
             continue
         base, pitch, flip, ticks, qs, ep, er = found

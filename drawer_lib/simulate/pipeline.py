@@ -32,7 +32,7 @@ from drawer_lib.runner import StageRun
 from drawer_lib.simulate.interact import cup_rides_along, drop_on_counter, pull_handle
 from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin, set_drives
 from drawer_lib.simulate.drive import drive_open
-from drawer_lib.stability.pipeline import read_choice
+from drawer_lib.stability.pipeline import choice_option
 
 
 @dataclass(frozen=True)
@@ -66,8 +66,7 @@ def run_simulate(cfg: SimulateConfig, parts_path: Path, twin_dir: Path, run: Sta
     if cfg.use_stability:
         if choice_path is None or not Path(choice_path).is_file():
             raise InputError(f"{choice_path}: missing (run the stability stage, or set simulate.use_stability=false)")
-        ch = read_choice(choice_path)
-        option = (ch["integrator"], float(ch["timestep"]))
+        option = choice_option(choice_path)
         m.opt.integrator = INTEGRATOR_ENUM[option[0]]
         m.opt.timestep = option[1]
     parts = [p for p in read_parts(parts_path).parts if p.articulated]

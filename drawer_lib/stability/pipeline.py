@@ -258,6 +258,13 @@ def run_stability(cfg: StabilityConfig, parts_path: Path, twin_dir: Path, twin_d
             "n_cells_diverged": n_div, "n_extremes_outside": len(outside), "reference_wall_s": round(t_ref, 3)}
 
 
+def choice_option(path: Path) -> tuple[str, float]:
+    """(integrator, timestep s) of a stability run's ``choice.json``: what the simulating
+    stages (``simulate``, ``robot``) run with."""
+    ch = read_choice(path)
+    return ch["integrator"], float(ch["timestep"])
+
+
 def read_choice(path: Path) -> dict:
     """``choice.json`` of a stability run: at least ``integrator`` and ``timestep``."""
     try:

@@ -375,7 +375,7 @@ def _zero_range_case(drive_tau: float = 0.02, speed: float = 0.5) -> Case:
 
 def _robot_grasp_case(duration: float = 0.6) -> Case:
     from drawer_lib.robot.ik import PandaIK
-    from drawer_lib.robot.panda import FINGER_KP, FINGER_MAX, BasePose, attach_robot, robot_index
+    from drawer_lib.robot.panda import FINGER_KP, FINGER_MAX, HOME, BasePose, attach_robot, robot_index
 
     z, proud, half = 0.7, 0.035, 0.007  # the bar's height, its face's standoff, its half thickness (m)
     xml = f"""<mujoco><option gravity="0 0 -9.81"/><worldbody>
@@ -394,7 +394,7 @@ def _robot_grasp_case(duration: float = 0.6) -> Case:
     T[:3, :3] = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])  # x, y (closing: +z), z (approach: +y)
     T[:3, 3] = [0.0, -(proud - half), z]
     Binv = np.linalg.inv(base.matrix())
-    q_grip, _, _ = ik.solve(Binv @ T, np.zeros(7) + [0, -0.3, 0, -2.2, 0, 1.9, math.pi / 4], iters=200)
+    q_grip, _, _ = ik.solve(Binv @ T, HOME, iters=200)
     T[1, 3] -= 0.05
     q_pull, _, _ = ik.solve(Binv @ T, q_grip, iters=200)
     ix = robot_index(m)

@@ -18,7 +18,8 @@ from drawer_lib.geometry.joints import joint_transform
 from drawer_lib.io.parts import write_parts
 from drawer_lib.robot import panda as P
 from drawer_lib.robot.dataset import Episode, write_lerobot
-from drawer_lib.robot.ik import PandaIK, rotation_angle
+from drawer_lib.geometry.rotations import rotation_angle
+from drawer_lib.robot.ik import PandaIK
 from drawer_lib.robot.plan import PHASES, RobotConfig, grasp_pose, task_path
 from drawer_lib.runner import StageRun
 
