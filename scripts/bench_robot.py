@@ -1,12 +1,14 @@
 #!/usr/bin/env python
 """The robot stage on every twin of a benchmark split that ``scripts/bench_twin.py`` built: the
-Panda opens and closes each part in the twin, and each demonstration is replayed in the
-kitchen's own model (its ground truth). Reports success in the twin and after transfer, per
-task and per part kind (GT kind of the matched part, or the twin's kind when unmatched), and
-the failure reasons.
+Panda opens and closes each part in the twin, puts a block from the counter into an opened
+drawer (``robot.pick_place``), and each demonstration is replayed in the kitchen's own model
+(its ground truth). Reports success in the twin and after transfer, per task and per part kind
+(GT kind of the matched part, or the twin's kind when unmatched), and the failure reasons.
 
     python scripts/bench_twin.py --out /tmp/bench_twin/default       # the twins first
     python scripts/bench_robot.py --twins /tmp/bench_twin/default --out /tmp/bench_robot
+    python scripts/bench_robot.py --twins /tmp/bench_twin/default --out /tmp/bench_pick \
+        -S robot.max_parts=0 -S robot.pick_place.max_drawers=3      # pick and place alone
 
 Writes ``<out>/summary.json`` (and each kitchen's robot folder, ``--camera`` to record images)
 and prints the tables.
@@ -45,8 +47,17 @@ def one(p: dict, split: str, k: int, twins: ScenePaths, out: ScenePaths) -> dict
     with stage_run("robot", out.stage_dir("robot"), seed=0) as run:
         m = run_robot(rc, twins.stage_dir("twin"), twins.parts, run, None, gt)
         run.metrics.update(m)
-    attempts = json.loads(out.file("robot", "attempts").read_text())["parts"]
-    return {"kitchen": twins.scene, "metrics": m, "attempts": attempts}
+    attempts = json.loads(out.file("robot", "attempts").read_text())
+    return {"kitchen": twins.scene, "metrics": m, "attempts": attempts["parts"],
+            "pick_place": attempts.get("pick_place", [])}
+
+
+def _pick_summary(xs: list[dict]) -> dict:
+    """Pick-and-place demonstrations pooled: how many, placed in the twin and after transfer, why not."""
+    tr = [x.get("transfer", {"placed": False, "reason": "failed in the twin"}) for x in xs]
+    return {"n": len(xs), "twin": sum(x["twin"]["placed"] for x in xs), "transfer": sum(t["placed"] for t in tr),
+            "twin_fail_reasons": dict(Counter(x["twin"]["reason"] for x in xs if x["twin"]["reason"])),
+            "transfer_fail_reasons": dict(Counter(t["reason"] for t in tr if t["reason"]))}
 
 
 def main() -> None:
@@ -98,6 +109,7 @@ def main() -> None:
         "by_gt_kind": {k: dict(v) for k, v in sorted(by_kind.items())},
         "dataset_episodes": sum(r["metrics"].get("dataset_episodes", 0) for r in rows),
         "dataset_frames": sum(r["metrics"].get("dataset_frames", 0) for r in rows),
+        "pick_place": _pick_summary([x for r in rows for x in r["pick_place"]]),
         "robot_wall_s_per_kitchen": sorted(r["metrics"]["robot_plan_s"] + r["metrics"]["robot_sim_s"]
                                            + r["metrics"]["robot_transfer_s"] for r in rows),
         "wall_s": time.perf_counter() - t0, "kitchens": rows}
@@ -109,6 +121,10 @@ def main() -> None:
     print(f"| all | {n} | {summary['twin_open']} | {summary['twin_close']} | {summary['transfer_open']} |")
     print(f"\nfailures in the twin: {summary['twin_fail_reasons']}")
     print(f"failures after transfer: {summary['transfer_fail_reasons']}")
+    pk = summary["pick_place"]
+    print(f"pick and place (a block from the counter into an opened drawer): {pk['n']} drawers, placed in the twin "
+          f"{pk['twin']}, after transfer {pk['transfer']}; failures in the twin {pk['twin_fail_reasons']}, after "
+          f"transfer {pk['transfer_fail_reasons']}")
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     print(f"{summary['wall_s']:.0f} s; {a.out / 'summary.json'}")

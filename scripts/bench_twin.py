@@ -3,11 +3,12 @@
 own capture, SDF and decompose output (the ``bench_kitchen`` stages' outputs) articulated with
 the fitted weights, completed and exported as the pipeline does, with the params changed by
 ``-S key=value``. Reports per kitchen and pooled: the twins whose physical checks all pass,
-the failures by check, the parts a person's pull opens on the file as it loads, the handle
+the failures by check, the parts a person's pull opens on the file as it loads, the parts
+stopped by a neighbour or the carcass before their limit, the overlaps repaired, the handle
 boxes and grasp kinds, the static collision's size and the simulation speed.
 
     python scripts/bench_twin.py --out /tmp/bench_twin/default
-    python scripts/bench_twin.py --out /tmp/bench_twin/contacts -S sim.contact.part_static=true -S sim.contact.part_part=true
+    python scripts/bench_twin.py --out /tmp/bench_twin/no_contacts -S sim.contact.part_static=false -S sim.contact.part_part=false
 
 Writes ``<out>/summary.json`` and prints a table. The kitchens have no appearance model, so the
 twins carry no Gaussians and no renders are scored.
@@ -77,6 +78,10 @@ def build(p: dict, src: ScenePaths, dst: ScenePaths, weights: dict) -> dict:
     parts = checks.get("parts", {})
     return {"kitchen": src.scene, "n_parts": len(parts), "failures": checks.get("failures", []),
             "pull_opened": sum(v.get("pull_time_to_open_s") is not None for v in parts.values()),
+            "n_stopped": sum(v.get("stopped_by") is not None for v in parts.values()),
+            "n_repairs_part_part": sum(r["action"] == "carved" for r in checks.get("repairs", []) if "other" in r),
+            "n_repairs_static": sum(r["action"] in ("carved", "removed") for r in checks.get("repairs", [])
+                                    if "other" not in r),
             "n_handle_boxes": cm.get("n_handle_boxes"), "n_static_boxes": cm.get("n_static_boxes"),
             "grasp": dict(Counter(p["grasp"]["kind"] for p in twin["parts"] if p.get("grasp"))),
             "sim_realtime_factor": checks.get("sim_realtime_factor"), **t}
@@ -115,6 +120,9 @@ def main() -> None:
         "overrides": a.set, "split": a.split, "n_kitchens": len(rows),
         "twins_passing": sum(not r["failures"] for r in rows), "failures_by_check": dict(by_check),
         "n_parts": n_parts, "pull_opened": sum(r["pull_opened"] for r in rows),
+        "n_stopped": sum(r["n_stopped"] for r in rows),
+        "n_repairs_part_part": sum(r["n_repairs_part_part"] for r in rows),
+        "n_repairs_static": sum(r["n_repairs_static"] for r in rows),
         "n_handle_boxes": sum(r["n_handle_boxes"] or 0 for r in rows),
         "grasp": dict(sum((Counter(r["grasp"]) for r in rows), Counter())),
         "n_static_boxes_median": sorted(r["n_static_boxes"] for r in rows)[len(rows) // 2],
@@ -129,7 +137,9 @@ def main() -> None:
               f"{r['n_handle_boxes']} | {r['n_static_boxes']} | {r['sim_realtime_factor']:.1f} |")
     print(f"\ntwins passing every check: {summary['twins_passing']} / {len(rows)}; failures by check: "
           f"{dict(by_check) or 'none'}; pulled open as loaded: {summary['pull_opened']} / {n_parts}; handle boxes "
-          f"{summary['n_handle_boxes']}; grasps {summary['grasp']}")
+          f"{summary['n_handle_boxes']}; grasps {summary['grasp']}; parts stopped by a neighbour or the carcass "
+          f"before their limit {summary['n_stopped']}; overlaps repaired part-part {summary['n_repairs_part_part']}, "
+          f"part-static {summary['n_repairs_static']}")
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
     print(f"{summary['wall_s']:.0f} s; {a.out / 'summary.json'}")

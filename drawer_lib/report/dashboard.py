@@ -303,7 +303,7 @@ def _low_margin(data: ReportData) -> Table:
 
 def _robot(data: ReportData) -> Table:
     t = Table(["scene", "opened in the twin", "closed in the twin", "opened after transfer", "failures after transfer",
-               "episodes, frames", "wall s"], [])
+               "block placed in a drawer (twin / transfer)", "episodes, frames", "wall s"], [])
     for sc in data.scenes:
         m = sc.metrics.get("robot")
         if not m or not m.get("robot_parts"):
@@ -312,8 +312,11 @@ def _robot(data: ReportData) -> Table:
         fails = ", ".join(f"{k.removeprefix('robot_transfer_fail_').replace('_', ' ')} {v}" for k, v in m.items()
                           if k.startswith("robot_transfer_fail_"))
         tr = f"{round(m['robot_transfer_success'] * n)}/{n}" if "robot_transfer_success" in m else "–"
+        k = m.get("robot_pick_place_n", 0)
+        pick = "–" if not k else f"{round(m['robot_pick_place_success'] * k)}/{k} / " + (
+            f"{round(m['robot_pick_place_transfer_success'] * k)}/{k}" if "robot_pick_place_transfer_success" in m else "–")
         t.rows.append([sc.name, f"{round(m['robot_open_success'] * n)}/{n}", f"{round(m['robot_close_success'] * n)}/{n}",
-                       tr, fails or "–", f"{m.get('dataset_episodes', 0)}, {m.get('dataset_frames', 0)}",
+                       tr, fails or "–", pick, f"{m.get('dataset_episodes', 0)}, {m.get('dataset_frames', 0)}",
                        _f(m.get("wall_s"), ".0f")])
     return t
 

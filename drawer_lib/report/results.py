@@ -268,6 +268,11 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
                               if k.startswith("robot_transfer_fail_"))
             s += (f"; replayed in the scene's own kitchen, {round(m['robot_transfer_success'] * n)}/{n} opened "
                   f"({fails or 'no failure'})")
+        k = m.get("robot_pick_place_n", 0)
+        if k:
+            s += f"; a block from the counter placed in an opened drawer {round(m['robot_pick_place_success'] * k)}/{k}"
+            if "robot_pick_place_transfer_success" in m:
+                s += f" ({round(m['robot_pick_place_transfer_success'] * k)}/{k} after transfer)"
         return s + (f"; {m.get('dataset_episodes', 0)} LeRobot episodes, {m.get('dataset_frames', 0)} frames, "
                     f"{m.get('dataset_bytes', 0) / 1e6:.1f} MB; {m['wall_s']:.0f} s")
 

@@ -152,13 +152,21 @@ def _finger_touch(m: mujoco.MjModel, d: mujoco.MjData, ix: RobotIndex, part_body
 
 
 def run_episode(m: mujoco.MjModel, ticks: list[Tick], actions: np.ndarray, part_id: str | None,
-                phases: tuple[str, ...], camera: tuple[int, int] = (0, 0)) -> Recording:
+                phases: tuple[str, ...], camera: tuple[int, int] = (0, 0), start: dict[str, float] | None = None,
+                probe: Callable[[mujoco.MjModel, mujoco.MjData], dict] | None = None) -> Recording:
     """Simulate ``actions`` [T, 8] (per tick: arm joint targets, finger command) in ``m`` (a
     model of :func:`episode_model`), one tick per ``1 / fps`` of ``ticks``' times; the arm
-    starts at the first action's joints and finger command. ``part_id``: the part whose joint is
-    recorded (None: none, its column is NaN)."""
+    starts at the first action's joints and finger command, the hinge and slide joints named in
+    ``start`` at those values (rad or m; every other joint at its rest). ``part_id``: the part
+    whose joint is recorded (None: none, its column is NaN). ``probe(m, d)`` at the end: its
+    dict goes to the recording's ``extra``."""
     d = mujoco.MjData(m)
     ix = robot_index(m)
+    for name, value in (start or {}).items():
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j < 0:
+            raise KeyError(f"run_episode: no joint {name!r} to start at {value}")
+        d.qpos[m.jnt_qposadr[j]] = value
     d.qpos[ix.arm_qpos] = actions[0, :7]
     d.qpos[ix.finger_qpos] = np.clip(actions[0, 7], 0.0, FINGER_MAX)
     d.ctrl[:] = 0.0
@@ -203,8 +211,9 @@ def run_episode(m: mujoco.MjModel, ticks: list[Tick], actions: np.ndarray, part_
             renderer.close()
     if problem is None:
         problem, _ = health(m, d)
+    extra = probe(m, d) if probe is not None and problem is None else {}
     n = len(rec["state"])
     return Recording(times[:n], np.array(rec["state"]).reshape(n, 9), actions[:n], np.array(rec["tcp"]).reshape(n, 7),
                      np.array(rec["part_q"]), np.array([phases.index(tk.phase) for tk in ticks[:n]]),
                      np.array(rec["touch"], bool), np.array(rec["collision"]),
-                     np.array(rec["images"]) if rec["images"] else None, problem, steps)
+                     np.array(rec["images"]) if rec["images"] else None, problem, steps, extra)

@@ -1,11 +1,13 @@
 """What the ``robot`` stage does: a Panda opens and closes every articulated part of the twin,
-and each demonstration is replayed in the ground-truth kitchen.
+puts a block from the counter into an opened drawer (:mod:`drawer_lib.robot.pick_place`), and
+each demonstration is replayed in the ground-truth kitchen.
 
 Per part with a grasp (``twin.json``): find a base pose (:func:`drawer_lib.robot.plan.
 base_candidates`, kinematic IK and collision checks), solve the IK along the whole path, then
 simulate it in the twin as it loads (drives off: the robot moves the part by its handle alone),
 with the stability study's integrator and timestep. The part is *opened* when its joint reaches
-``success_fraction`` x the target (``open_fraction`` of its upper limit) by the end of the hold,
+``success_fraction`` x the target (``open_fraction`` of its stop: its upper limit, or where a
+neighbour or the carcass stops it, ``twin.json`` ``stop``) by the end of the hold,
 *closed* when it is back below (1 - ``success_fraction``) x the target at the end.
 
 Transfer (scenes with a procedural ground truth): the same actions (joint targets and gripper
@@ -22,9 +24,9 @@ presses into the scene deeper than 1 cm), ``diverged``, ``opened short``; after 
 ``no such part`` (no GT part under the twin's front), ``wrong axis`` (another joint kind, or an
 axis > 15° off), ``wrong hinge side``. The first that applies is reported.
 
-Outputs: ``attempts.json`` (per part: base, pitch, results, reasons, episode indices), the
-dataset (:mod:`drawer_lib.robot.dataset`, two episodes per demonstration: open, then close),
-metrics.
+Outputs: ``attempts.json`` (per part: base, pitch, results, reasons, episode indices; per
+pick-and-place: the spots, base, results, reasons), the dataset (:mod:`drawer_lib.robot.dataset`,
+two episodes per opening demonstration: open, then close; one per pick-and-place), metrics.
 """
 
 import json
@@ -44,6 +46,8 @@ from drawer_lib.metrics.articulation import hinge_side, match_parts, part_kind
 from drawer_lib.robot.dataset import Episode, write_lerobot
 from drawer_lib.robot.execute import PlanningScene, Recording, episode_model, run_episode
 from drawer_lib.robot.ik import PandaIK
+from drawer_lib.robot.pick_place import (OBJECT, PICK_PHASES, Site, front_frame, ray_down, counter_spot,
+                                         object_in_part, pick_key_ticks, pick_place_path, place_spot, with_object)
 from drawer_lib.robot.panda import ARM, FINGERS
 from drawer_lib.robot.plan import (PHASES, RobotConfig, base_candidates, grasp_pose, key_ticks, open_width,
                                    solve_path, task_path)
@@ -139,8 +143,12 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
     index_path = Path(twin_dir) / stage_name("twin", "index")
     if not index_path.is_file():
         raise InputError(f"{index_path}: missing (run the twin stage first)")
-    grasps = {p["id"]: p.get("grasp") for p in json.loads(index_path.read_text())["parts"]}
+    index = json.loads(index_path.read_text())["parts"]
+    grasps = {p["id"]: p.get("grasp") for p in index}
+    # how far each part opens in the twin: its upper limit, or where a neighbour or the carcass stops it
+    stops = {p["id"]: p["stop"]["q"] for p in index if p.get("stop")}
     parts = [p for p in read_parts(parts_path).parts if p.articulated]
+    all_parts = list(parts)
     if cfg.max_parts is not None:
         parts = parts[: cfg.max_parts]
     if option is not None:
@@ -151,7 +159,7 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
 
     matched: dict[str, Part] = {}
     if gt is not None and cfg.transfer:
-        mt = match_parts(PartsFile(tuple(parts)), gt.parts)
+        mt = match_parts(PartsFile(tuple(all_parts)), gt.parts)
         matched = {mt.pred[i].id: mt.gt[j] for i, j, _ in mt.pairs}
     elif cfg.transfer:
         run.skip("robot_transfer_success", "the scene has no ground-truth kitchen to replay in")
@@ -165,14 +173,14 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
         t0 = time.perf_counter()
         a: dict = {"id": p.id, "kind": part_kind(p), "joint": p.kind}
         g = grasps.get(p.id)
-        q_goal = cfg.open_fraction * p.limits[1]
+        q_goal = cfg.open_fraction * min(p.limits[1], stops.get(p.id, p.limits[1]))
         found, n_tried = None, 0
         if g is not None:
             fo = open_width(g, cfg)
             for base, pitch, flip in base_candidates(p, g, cfg.base, q_goal):
                 n_tried += 1
                 G = grasp_pose(g, pitch, flip)
-                ticks = task_path(p, G, cfg, fo)
+                ticks = task_path(p, G, cfg, fo, q_goal)
                 idx = key_ticks(ticks)
                 qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
                 if ep > tol[0] or er > tol[1] or any(
@@ -229,13 +237,29 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
             a["transfer"] = tr
         attempts.append(a)
 
+    t0 = time.perf_counter()
+    placements = []
+    drawers = sorted((p for p in all_parts if p.kind == "prismatic" and p.extra.get("family", "drawer") == "drawer"),
+                     key=lambda p: -float(p.front.corners()[:, 2].max()))[: cfg.pick_place.max_drawers]
+    for p in run.progress(drawers, desc="pick and place", total=len(drawers)):
+        q_open = cfg.open_fraction * min(p.limits[1], stops.get(p.id, p.limits[1]))
+        rec_pp, eps = pick_and_place(cfg, p, q_open, twin_spec, ik, ps, option, cam,
+                                     matched.get(p.id) if gt is not None and cfg.transfer else None,
+                                     gt.spec_factory if gt is not None and cfg.transfer else None)
+        rec_pp["episodes"] = list(range(len(episodes), len(episodes) + len(eps)))
+        episodes += eps
+        placements.append(rec_pp)
+    t_pick = time.perf_counter() - t0
+
     camera = cam[0] > 0
     feats = dict(FEATURES_BASE)
     if camera:
         feats["observation.images.front"] = {"dtype": "image", "shape": [cam[1], cam[0], 3],
                                              "names": ["height", "width", "channels"]}
     metrics = _metrics(attempts, gt is not None and cfg.transfer)
-    metrics |= {"robot_plan_s": round(t_plan, 3), "robot_sim_s": round(t_sim, 3), "robot_transfer_s": round(t_gt, 3)}
+    metrics |= _pick_metrics(placements, gt is not None and cfg.transfer)
+    metrics |= {"robot_plan_s": round(t_plan, 3), "robot_sim_s": round(t_sim, 3), "robot_transfer_s": round(t_gt, 3),
+                "robot_pick_place_s": round(t_pick, 3)}
     if episodes:
         info = write_lerobot(run.out("dataset"), episodes, feats, cfg.fps, robot_type="franka_panda")
         size = sum(f.stat().st_size for f in run.out("dataset").rglob("*") if f.is_file())
@@ -244,8 +268,128 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
     else:
         run.skip("dataset", "no demonstration ran")
         run.out("dataset").mkdir(parents=True)
-    write_json(run.out("attempts"), {"parts": attempts})
+    write_json(run.out("attempts"), {"parts": attempts, "pick_place": placements})
     return metrics
+
+
+def _pick_reason(rec: Recording, placed: bool) -> str | None:
+    """Why a pick-and-place did not put the block in the drawer (module docstring)."""
+    if placed:
+        return None
+    if rec.problem:
+        return "diverged"
+    width = rec.state[:, 7] + rec.state[:, 8]
+    g = int(np.flatnonzero(rec.phase == PICK_PHASES.index("grip"))[-1])
+    if width[g] < EMPTY_GRIP:
+        return "missed object"
+    if (width[rec.phase == PICK_PHASES.index("carry")] < EMPTY_GRIP).any():
+        return "dropped"
+    return "missed drawer"
+
+
+def pick_and_place(cfg: RobotConfig, p: Part, q_open: float, twin_spec, ik: PandaIK, ps: PlanningScene,
+                   option, cam: tuple[int, int], gp: Part | None, gt_spec) -> tuple[dict, list[Episode]]:
+    """One pick-and-place on drawer ``p`` opened to ``q_open`` (:mod:`drawer_lib.robot.pick_place`),
+    replayed in the ground truth (``gt_spec``, with ``gp`` the matched GT part) when given.
+    Returns its record for ``attempts.json`` and its episode (none when it did not run)."""
+    pp = cfg.pick_place
+    out: dict = {"id": p.id, "q_open": q_open}
+    mt = with_object(twin_spec, np.array([0.0, 0.0, -10.0]), pp)().compile()  # the block parked below the floor
+    d = mujoco.MjData(mt)
+    mujoco.mj_kinematics(mt, d)
+    spot = counter_spot(mt, d, p, pp)
+    if spot is None:
+        return out | {"twin": {"placed": False, "reason": "no counter"}}, []
+    pick, counter_z = spot
+    place = place_spot(mt, d, p, q_open, counter_z, pp)
+    if place is None:
+        return out | {"pick": pick.tolist(), "twin": {"placed": False, "reason": "no drawer bottom"}}, []
+    c, n, u, top = front_frame(p)
+    site = Site(pick, counter_z, place, q_open, n, u)
+    ticks = pick_place_path(site, cfg, pp, top)
+    idx = pick_key_ticks(ticks)
+    tol = (cfg.ik_tol_m, math.radians(cfg.ik_tol_deg))
+    pseudo = {"position": (0.5 * (pick + place)).tolist(), "approach": (-n).tolist(), "closing_axis": u.tolist()}
+    found, seen = None, set()
+    for base, _, _ in base_candidates(p, pseudo, cfg.base, 0.0):
+        key = (*np.round(base.pos, 4), round(base.yaw, 4))
+        if key in seen:
+            continue
+        seen.add(key)
+        qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
+        if ep > tol[0] or er > tol[1] or any(ps.collisions(base, q, p.id, q_open, cfg.collision_depth,
+                                                           max(0.0, ticks[i].finger)) for i, q in zip(idx, qs)):
+            continue
+        qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
+        if ep <= 2 * tol[0] and er <= 2 * tol[1]:
+            found = (base, qs)
+            break
+    out |= {"pick": pick.tolist(), "place": place.tolist(), "counter_z": counter_z,
+            "base_candidates_tried": len(seen)}
+    if found is None:
+        return out | {"twin": {"placed": False, "reason": "unreachable"}}, []
+    base, qs = found
+    out["base"] = {"pos": list(base.pos), "yaw": base.yaw}
+    actions = np.column_stack([qs, [tk.finger for tk in ticks]])
+    m = episode_model(with_object(twin_spec, pick, pp), base, option, cam, pick)
+    rec = run_episode(m, ticks, actions, p.id, PICK_PHASES, cam, start={p.id: q_open},
+                      probe=lambda m, d: {"placed": object_in_part(m, d, p.id, counter_z),
+                                          "object_end": d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY,
+                                                                                OBJECT)].tolist()})
+    placed = bool(rec.extra.get("placed", False))
+    out["twin"] = {"placed": placed, "reason": _pick_reason(rec, placed), "object_end": rec.extra.get("object_end"),
+                   "problem": rec.problem, "sim_steps": rec.sim_steps}
+    fr = {"observation.state": rec.state, "action": rec.action, "observation.ee_pose": rec.tcp,
+          "observation.part_q": rec.part_q}
+    if cam[0] > 0:
+        fr["observation.images.front"] = rec.images
+    episode = Episode(f"pick up the block from the counter and place it in the drawer {p.id}", fr)
+    if gt_spec is not None:
+        out["transfer"] = _pick_transfer(cfg, p, site, gp, gt_spec, base, ticks, actions, option)
+    return out, [episode]
+
+
+def _pick_transfer(cfg: RobotConfig, p: Part, site: Site, gp: Part | None, gt_spec, base, ticks, actions,
+                   option) -> dict:
+    """The pick-and-place's actions replayed in the ground-truth kitchen: the block on the real
+    counter at the same (x, y), the matched part opened to the same q (clipped to its range)."""
+    pp = cfg.pick_place
+    if gp is None:
+        return {"placed": False, "reason": "no such part", "gt_id": None}
+    if gp.kind != "prismatic":
+        return {"placed": False, "reason": "wrong axis", "gt_id": gp.id}
+    mg = gt_spec().compile()
+    dg = mujoco.MjData(mg)
+    mujoco.mj_kinematics(mg, dg)
+    _, _, _, top = front_frame(p)
+    z, g = ray_down(mg, dg, site.pick[:2], top + pp.probe_height)
+    static = mujoco.mj_name2id(mg, mujoco.mjtObj.mjOBJ_BODY, "static")
+    if g < 0 or mg.geom_bodyid[g] != static:
+        return {"placed": False, "reason": "no counter", "gt_id": gp.id}
+    gpick = np.array([site.pick[0], site.pick[1], z + pp.size[2] / 2 + 0.001])
+    q = float(min(site.q_open, gp.limits[1]))
+    m = episode_model(with_object(gt_spec, gpick, pp), base, option, (0, 0), gpick)
+    rec = run_episode(m, ticks, actions, gp.id, PICK_PHASES, start={gp.id: q},
+                      probe=lambda m, d: {"placed": object_in_part(m, d, gp.id, z)})
+    placed = bool(rec.extra.get("placed", False))
+    return {"placed": placed, "reason": _pick_reason(rec, placed), "gt_id": gp.id, "gt_q_open": q,
+            "counter_z": z, "problem": rec.problem}
+
+
+def _pick_metrics(placements: list[dict], transfer: bool) -> dict:
+    n = len(placements)
+    m: dict = {"robot_pick_place_n": n}
+    if not n:
+        return m
+    m["robot_pick_place_success"] = sum(r["twin"]["placed"] for r in placements) / n
+    for r, c in sorted(Counter(x["twin"]["reason"] for x in placements if x["twin"]["reason"]).items()):
+        m[f"robot_pick_place_fail_{r.replace(' ', '_')}"] = c
+    if transfer:
+        tr = [x.get("transfer", {"placed": False, "reason": "failed in the twin"}) for x in placements]
+        m["robot_pick_place_transfer_success"] = sum(t["placed"] for t in tr) / n
+        for r, c in sorted(Counter(t["reason"] for t in tr if t["reason"]).items()):
+            m[f"robot_pick_place_transfer_fail_{r.replace(' ', '_')}"] = c
+    return m
 
 
 def _metrics(attempts: list[dict], transfer: bool) -> dict:

@@ -56,6 +56,39 @@ class BaseSearch:
 
 
 @dataclass(frozen=True)
+class PickPlaceConfig:
+    """``robot.pick_place`` (:mod:`drawer_lib.robot.pick_place`). Lengths m, mass kg. ``max_drawers``: pick-and-place
+    demonstrations per scene, on the drawers (prismatic parts of the drawer kind) highest first
+    (nearest the counter); 0 turns the task off. ``friction``: the block's sliding friction."""
+
+    max_drawers: int = 1
+    size: tuple[float, ...] = (0.04, 0.04, 0.05)
+    mass: float = 0.15
+    friction: float = 1.0
+    setback: tuple[float, ...] = (0.15, 0.22, 0.3)
+    lateral: tuple[float, ...] = (0.0, -0.1, 0.1)
+    probe_height: float = 0.35
+    lift: float = 0.1
+    drop: float = 0.01
+    settle: float = 0.5
+
+    def __post_init__(self):
+        if self.max_drawers < 0:
+            raise ConfigError(f"robot.pick_place.max_drawers = {self.max_drawers} must be >= 0")
+        if len(self.size) != 3 or not all(math.isfinite(s) and s > 0 for s in self.size):
+            raise ConfigError(f"robot.pick_place.size = {self.size} must be 3 lengths > 0 (m)")
+        if self.size[1] >= 2 * FINGER_MAX:
+            raise ConfigError(f"robot.pick_place.size = {self.size}: the block's width {self.size[1]} m must be "
+                              f"below the gripper's opening {2 * FINGER_MAX} m")
+        for k in ("mass", "friction", "probe_height", "lift", "settle"):
+            v = getattr(self, k)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"robot.pick_place.{k} = {v} must be finite and > 0")
+        if not self.setback or not self.lateral or self.drop < 0:
+            raise ConfigError("robot.pick_place: setback and lateral need at least one value, drop >= 0")
+
+
+@dataclass(frozen=True)
 class RobotConfig:
     """The robot stage (``robot`` group). Speeds m/s or rad/s, times s, lengths m.
 
@@ -66,7 +99,8 @@ class RobotConfig:
     70 N); ``finger_clearance``: the open fingers stand this far from the handle's sides (an
     8 cm open gripper would strike the fronts above and below a drawer's bar); ``camera``: width x height of the recorded stream (0 turns it off).
     ``transfer``: replay every demonstration in the ground-truth kitchen when the scene has one.
-    ``max_parts``: at most this many parts per scene (None: all)."""
+    ``max_parts``: at most this many parts per scene (None: all). ``pick_place``: the
+    pick-and-place task (:class:`PickPlaceConfig`)."""
 
     open_fraction: float = 0.8
     success_fraction: float = 0.85
@@ -86,6 +120,7 @@ class RobotConfig:
     transfer: bool = True
     max_parts: int | None = None
     base: BaseSearch = field(default_factory=BaseSearch)
+    pick_place: PickPlaceConfig = field(default_factory=PickPlaceConfig)
 
     def __post_init__(self):
         if not (0 < self.open_fraction <= 1 and 0 < self.success_fraction <= 1):
@@ -147,12 +182,14 @@ def open_width(grasp: dict, cfg: RobotConfig) -> float:
     return float(min(FINGER_MAX, max(0.01, float(grasp.get("width") or 0.0) / 2 + cfg.finger_clearance)))
 
 
-def task_path(part: Part, grasp_T: np.ndarray, cfg: RobotConfig, finger_open: float = FINGER_MAX) -> list[Tick]:
+def task_path(part: Part, grasp_T: np.ndarray, cfg: RobotConfig, finger_open: float = FINGER_MAX,
+              q_goal: float | None = None) -> list[Tick]:
     """The control ticks of the open-then-close demonstration of ``part`` (module docstring);
-    the fingers open to ``finger_open`` (m each, :func:`open_width`)."""
+    the fingers open to ``finger_open`` (m each, :func:`open_width`); the joint is taken to
+    ``q_goal`` (rad or m; default ``open_fraction`` x the upper limit)."""
     dt = 1.0 / cfg.fps
-    hi = part.limits[1]
-    q_goal = cfg.open_fraction * hi
+    if q_goal is None:
+        q_goal = cfg.open_fraction * part.limits[1]
     speed = cfg.speed_rad if part.kind == "revolute" else cfg.speed_m
     approach = grasp_T[:3, 2]
     ticks: list[Tick] = []

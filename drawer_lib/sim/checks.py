@@ -158,14 +158,79 @@ def _resolve(m: mujoco.MjModel, twin: TwinModel, fails: _Failures) -> dict[str, 
     return out
 
 
+def _colliders(names: list[str], n_parts: int, cfg: SimConfig) -> np.ndarray:
+    """Per owner in ``names`` (static, parts, rigid objects) whether a part collides with it in
+    the exported model (``cfg.contact``; rigid objects are pushed, not stops)."""
+    out = np.zeros(len(names), bool)
+    out[0] = cfg.contact.part_static
+    out[1:1 + n_parts] = cfg.contact.part_part
+    return out
+
+
+def part_stop(mc: mujoco.MjModel, qadr: int, hi: float, me: int, owner: np.ndarray, colliders: np.ndarray,
+              depth: float, samples: int, iters: int = 20) -> tuple[float, int | None]:
+    """How far a part opens before it runs into what it collides with, every other joint at 0:
+    (stop q in [0, hi], the owner index it runs into or None when it reaches ``hi``). ``mc``:
+    the collide-all model (:func:`collide_all`); ``qadr``: the part's qpos address; ``me``: its
+    owner index; ``colliders``: per owner whether it stops the part (:func:`_colliders`); a
+    pose is blocked when the part penetrates one of them by more than ``depth`` (m) beyond what
+    it already did at q = 0 (an overlap at q = 0 is the penetration check's). Poses
+    ``samples`` evenly in (0, hi], then ``iters`` bisections between the last free and the first
+    blocked one (the stop is the last free pose: within hi / samples / 2^iters of the contact)."""
+    d = mujoco.MjData(mc)
+
+    def depths(q: float) -> np.ndarray:  # per owner, how deep the part is in it at q (m)
+        d.qpos[:] = mc.qpos0
+        d.qpos[qadr] = q
+        a, b, dep = _penetrations(mc, d, owner)
+        other = np.where(a == me, b, np.where(b == me, a, -1))
+        out = np.zeros(len(colliders))
+        np.maximum.at(out, other[other >= 0], dep[other >= 0])
+        return np.where(colliders, out, 0.0)
+
+    base = depths(0.0)  # an overlap already there at q = 0 is the penetration check's, not a stop
+
+    def hit(q: float) -> int | None:
+        extra = depths(q) - base
+        k = int(np.argmax(extra))
+        return k if extra[k] > depth else None
+
+    free = 0.0
+    for q in np.linspace(0.0, hi, samples + 1)[1:]:
+        by = hit(float(q))
+        if by is None:
+            free = float(q)
+            continue
+        blocked = float(q)
+        for _ in range(iters):
+            mid = 0.5 * (free + blocked)
+            if hit(mid) is None:
+                free = mid
+            else:
+                blocked = mid
+        return free, by
+    return hi, None
+
+
 def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p: PartBody, ix: dict,
-                owner: np.ndarray, names: list[str], cfg: SimConfig, fails: _Failures) -> dict:
+                owner: np.ndarray, names: list[str], cfg: SimConfig, fails: _Failures, colliders: np.ndarray) -> dict:
     c, jc, dt = cfg.checks, cfg.joint(p.kind), m.opt.timestep
     lo, hi = p.limits
     unit = _UNIT[p.kind]
     revolute = p.kind == "revolute"
     rec: dict = {"kind": p.kind, "lo": lo, "hi": hi, "mass_kg": float(m.body_mass[ix["body"]]),
                  "kv": float(-m.actuator_biasprm[ix["actuator"], 2])}
+
+    # where it stops: its upper limit, or what it runs into first with every other part closed
+    me = names.index(p.id)
+    stop, by = part_stop(mc, ix["qpos"], hi, me, owner, colliders, c.stop_depth, c.stop_samples)
+    reach = min(hi, stop) if by is not None else hi
+    rec.update(stop_q=reach, stopped_by=names[by] if by is not None else None,
+               travel_fraction=reach / hi if hi > 0 else 1.0)
+    if by is not None and reach < c.min_travel * hi:
+        fails.add(p.id, "blocked", f"part {p.id!r}: with every other part closed it runs into "
+                  f"{'the static scene' if names[by] == STATIC else repr(names[by])} at q = {reach:.3g} {unit}, "
+                  f"{reach / hi:.0%} of its range {hi:.3g} {unit} (needs {c.min_travel:.0%})")
 
     # drive: velocity target = drive speed (within the actuator's control range)
     speed = jc.speed
@@ -179,7 +244,7 @@ def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p
     q = _run(m, d, n, ix["qpos"])
     problem, nonfinite = health(m, d)
     tol = c.drive_overshoot_rad if revolute else c.drive_overshoot_m
-    rec.update(drive_time_s=t_open, drive_time_to_open_s=_first_time(q, c.open_fraction * hi, dt),
+    rec.update(drive_time_s=t_open, drive_time_to_open_s=_first_time(q, c.open_fraction * reach, dt),
                drive_max_q=float(np.nanmax(q)) if np.isfinite(q).any() else math.nan,
                drive_final_q=float(q[-1]))
     rec["drive_overshoot"] = max(0.0, rec["drive_max_q"] - hi) if math.isfinite(rec["drive_max_q"]) else math.nan
@@ -187,8 +252,8 @@ def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p
         fails.add(p.id, "drive", f"part {p.id!r}: drive test: the simulation is not healthy ({problem})", nonfinite)
     elif rec["drive_time_to_open_s"] is None:
         fails.add(p.id, "drive", f"part {p.id!r}: driven at {speed:.3g} {unit}/s it reached only "
-                  f"{max(q.max(), 0) / hi:.0%} of its upper limit {hi:.3g} {unit} in {t_open:.3g} s "
-                  f"(needs {c.open_fraction:.0%}): it is blocked")
+                  f"{max(q.max(), 0) / max(reach, 1e-12):.0%} of {'its upper limit' if by is None else 'its stop'} "
+                  f"{reach:.3g} {unit} in {t_open:.3g} s (needs {c.open_fraction:.0%}): it is held back")
     elif rec["drive_overshoot"] > tol:
         fails.add(p.id, "drive", f"part {p.id!r}: driven open it passed its upper limit {hi:.3g} {unit} by "
                   f"{rec['drive_overshoot']:.3g} {unit} (max {tol:.3g})")
@@ -198,7 +263,7 @@ def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p
     q, d = pull(m_pull, ix, force, c.open_time)
     problem, nonfinite = health(m_pull, d)
     tol = c.pull_overshoot_rad if revolute else c.pull_overshoot_m
-    level = lo + c.pull_fraction * (hi - lo)
+    level = lo + c.pull_fraction * (reach - lo)
     rec.update(pull_force=force, pull_time_to_open_s=_first_time(q, level, dt),
                pull_max_q=float(np.nanmax(q)) if np.isfinite(q).any() else math.nan, pull_final_q=float(q[-1]))
     rec["pull_overshoot"] = max(0.0, rec["pull_max_q"] - hi) if math.isfinite(rec["pull_max_q"]) else math.nan
@@ -207,13 +272,12 @@ def _check_part(m: mujoco.MjModel, m_pull: mujoco.MjModel, mc: mujoco.MjModel, p
     elif rec["pull_time_to_open_s"] is None:
         fails.add(p.id, "pull", f"part {p.id!r}: pulled with {force:.3g} {'N·m' if revolute else 'N'} it opened "
                   f"only to q = {q.max():.3g} {unit} in {c.open_time:.3g} s (needs {c.pull_fraction:.0%} of "
-                  f"[{lo:.3g}, {hi:.3g}])")
+                  f"[{lo:.3g}, {reach:.3g}])")
     elif rec["pull_overshoot"] > tol or q[-1] > hi + tol:
         fails.add(p.id, "pull", f"part {p.id!r}: pulled open it passed its upper limit {hi:.3g} {unit} by "
                   f"{rec['pull_overshoot']:.3g} {unit} (max {tol:.3g}): the limit does not hold it")
 
     # along its path (0, hi]: penetration into the static scene
-    me = names.index(p.id)
     d = mujoco.MjData(mc)
     worst, worst_q = 0.0, 0.0
     for qs in np.linspace(0.0, hi, c.path_samples + 1)[1:]:
@@ -236,11 +300,13 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     ``scene.xml``) against its description ``twin``; return what was measured.
 
     Checks (tolerances in ``cfg.checks``): the model matches the twin (names, types, axes,
-    ranges); every drive (turned on for the test) opens its part to 95 % of its upper limit
-    within 3 s (or 1.2 x range / drive speed when a long travel needs more) and passes the limit
+    ranges); each part's stop is its upper limit, or, with contacts on, where it first runs
+    into another (closed) part or the static scene (:func:`part_stop`), and a part stopped
+    before half its range is blocked; every drive (turned on for the test) opens its part to
+    95 % of its stop within 3 s (or 1.2 x range / drive speed when a long travel needs more) and passes the limit
     by <= 1° / 1 mm; a person's pull (20 N / 10 N·m as an applied generalised force, on the
     model as it loads: a twin whose drives act as it loads brakes its parts and fails here)
-    opens it to 90 % of its range within 3 s and the limit holds (<= 2° / 5 mm); at q = 0 no
+    opens it to 90 % of its stop within 3 s and the limit holds (<= 2° / 5 mm); at q = 0 no
     part penetrates the static scene by > 2 mm (nor another part, when parts collide:
     ``contact.part_part``; else that overlap is only reported), nor the static scene along its
     path; rigid objects move < 1 cm in 2 s at rest; no NaN and no MuJoCo warning anywhere.
@@ -248,8 +314,8 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
 
     Returns: a dict of flat aggregates (``n_parts``, ``n_rigid``, ``drive_time_to_open_s_max``,
     ``pull_time_to_open_s_max``, ``penetration_max_m`` (static scene), ``penetration_parts_max_m``,
-    ``path_penetration_max_m``,
-    ``rigid_drift_max_m``, ``sim_steps_per_s``, ``sim_realtime_factor``, ``check_wall_s``) plus
+    ``path_penetration_max_m``, ``n_parts_stopped`` (stopped before their upper limit),
+    ``travel_fraction_min``, ``rigid_drift_max_m``, ``sim_steps_per_s``, ``sim_realtime_factor``, ``check_wall_s``) plus
     ``parts: {id: {...}}`` and ``rigid: {id: {...}}`` with the per-body numbers (SI units).
     Raises: ``TwinCheckError`` / ``NonFiniteError`` naming every failing part.
     """
@@ -278,11 +344,12 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     d = mujoco.MjData(mc)
     a, b, depth = _penetrations(mc, d, owner)
     n_static_parts = 1 + len(twin.parts)
+    colliders = _colliders(names, len(twin.parts), cfg)
     for p in twin.parts:
         if p.id not in ids:
             continue
         me = names.index(p.id)
-        rec = _check_part(m_drive, m_pull, mc, p, ids[p.id], owner, names, cfg, fails)
+        rec = _check_part(m_drive, m_pull, mc, p, ids[p.id], owner, names, cfg, fails, colliders)
         for key, others in (("penetration", (0, 1)), ("penetration_parts", (1, n_static_parts))):
             inr = lambda o: (o >= others[0]) & (o < others[1])  # noqa: E731
             hit = ((a == me) & inr(b)) | ((b == me) & inr(a))
@@ -327,6 +394,8 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
         drive_time_to_open_s_max=_max("drive_time_to_open_s"), pull_time_to_open_s_max=_max("pull_time_to_open_s"),
         penetration_max_m=_max("penetration_m"), penetration_parts_max_m=_max("penetration_parts_m"),
         path_penetration_max_m=_max("path_penetration_m"),
+        n_parts_stopped=sum(v.get("stopped_by") is not None for v in parts),
+        travel_fraction_min=min((v["travel_fraction"] for v in parts), default=None),
         rigid_drift_max_m=float(drift.max()) if len(drift) else None,
         sim_steps_per_s=n / wall if wall > 0 else None,
         sim_realtime_factor=n * m.opt.timestep / wall if wall > 0 else None,

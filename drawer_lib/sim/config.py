@@ -79,17 +79,18 @@ class DensityConfig:
 
 @dataclass(frozen=True)
 class ContactConfig:
-    """Contacts. ``part_static``: parts collide with the static scene (default off: a joint's
-    limits are its stops, and reconstructed carcass hulls that overlap a drawer slightly would
-    otherwise jam it; the checks measure part-vs-static penetration geometrically either way).
-    ``part_part``: parts collide with each other. Rigid objects always collide with the static
-    scene, parts and each other. ``friction`` sliding coefficient (wood on wood, ceramic on
-    wood ~0.3-0.6), torsional and rolling as MuJoCo's defaults. ``limit_timeconst`` (s): the
-    joint limits' constraint time constant (MuJoCo solref; >= 2 timesteps), short so a door
-    slammed by a 10 N·m pull stops within 2° of its limit (MuJoCo's default 0.02 s lets it
-    overshoot ~4°)."""
+    """Contacts. ``part_static``: parts collide with the static scene; ``part_part``: parts collide
+    with each other. Both on by default: the twin stage first trims what overlaps at q = 0
+    (:mod:`drawer_lib.sim.repair`), so nothing is in contact as the file loads, and a door
+    that swings into its neighbour stops there (the checks measure that stop). Off, a part's
+    joint limits are its only stops and the checks measure overlaps geometrically. Rigid
+    objects always collide with the static scene, parts and each other. ``friction`` sliding
+    coefficient (wood on wood, ceramic on wood ~0.3-0.6), torsional and rolling as MuJoCo's
+    defaults. ``limit_timeconst`` (s): the joint limits' constraint time constant (MuJoCo
+    solref; >= 2 timesteps), short so a door slammed by a 10 N·m pull stops within 2° of its
+    limit (MuJoCo's default 0.02 s lets it overshoot ~4°)."""
 
-    part_static: bool = False
+    part_static: bool = True
     part_part: bool = True
     friction: float = 0.6
     friction_torsion: float = 0.005
@@ -115,7 +116,12 @@ class CheckConfig:
     ``pull_overshoot_rad`` / ``pull_overshoot_m``. Penetration: at q = 0 a part intersects the
     static scene or another part by <= ``penetration``; along its path (``path_samples`` poses in
     (0, hi]) the static scene by <= ``path_penetration``. Rest: rigid objects move <
-    ``rest_drift`` in ``rest_time``."""
+    ``rest_drift`` in ``rest_time``. Stop: with every other part closed, a part opens until it
+    first penetrates what it collides with (other parts with ``contact.part_part``, the static
+    scene with ``contact.part_static``) by more than ``stop_depth``, found on ``stop_samples``
+    poses in (0, hi] refined by bisection; the drive and pull tests then need their fractions of
+    that stop, not of the joint range (a door that its neighbour stops opens as far as it really
+    would), and a part whose stop is below ``min_travel`` of its range fails as blocked."""
 
     open_fraction: float = 0.95
     open_time: float = 3.0
@@ -131,13 +137,17 @@ class CheckConfig:
     path_samples: int = 8
     rest_time: float = 2.0
     rest_drift: float = 0.01
+    stop_depth: float = 0.0005
+    stop_samples: int = 64
+    min_travel: float = 0.5
 
     def __post_init__(self):
         _check(0 < self.open_fraction <= 1 and 0 < self.pull_fraction <= 1, "checks: fractions must be in (0, 1]")
         _check(self.open_time > 0 and self.rest_time > 0, "checks: open_time and rest_time must be > 0")
-        _check(self.path_samples >= 1, "checks.path_samples must be >= 1")
+        _check(self.path_samples >= 1 and self.stop_samples >= 1, "checks.path_samples and stop_samples must be >= 1")
+        _check(0.0 <= self.min_travel <= 1.0, f"checks.min_travel = {self.min_travel} must be in [0, 1]")
         for k in ("drive_overshoot_rad", "drive_overshoot_m", "pull_force", "pull_torque", "pull_overshoot_rad",
-                  "pull_overshoot_m", "penetration", "path_penetration", "rest_drift"):
+                  "pull_overshoot_m", "penetration", "path_penetration", "rest_drift", "stop_depth"):
             _check(getattr(self, k) >= 0, f"checks.{k} must be >= 0")
 
 

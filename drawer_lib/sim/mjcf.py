@@ -18,10 +18,10 @@ Decisions:
   mass_properties` (collision solids x density; ``inertiafromgeom="false"``), the same numbers
   the URDF and USD get.
 * Contacts by ``contype`` / ``conaffinity`` bits (static 1, part 2, rigid 4): rigid objects
-  collide with everything, parts with parts and rigid objects, and with the static scene only
-  when ``cfg.contact.part_static`` (default off: a part's joint limits are its stops, and a
-  reconstructed carcass that overlaps its drawer by a few millimetres must not jam it; the
-  checks measure part-vs-static penetration geometrically instead).
+  collide with everything; parts with rigid objects, with each other when
+  ``cfg.contact.part_part`` and with the static scene when ``cfg.contact.part_static`` (both on
+  by default; the twin stage trims the overlaps at q = 0 first, :mod:`drawer_lib.sim.repair`, so
+  nothing is in contact as the file loads).
 * Passive as loaded: the drives are actuator group 1 (:data:`DRIVE_GROUP`), disabled by
   ``<option actuatorgroupdisable>`` unless ``cfg.drives_on_load``: the file a user loads is a
   kitchen whose parts a hand or a robot moves against their joints' damping and friction alone

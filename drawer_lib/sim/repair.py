@@ -1,13 +1,24 @@
-"""Repair of the small defects a reconstructed twin carries: a part that sits a few millimetres
-into the static scene at q = 0 (a drawer front 4 mm into a carcass box, a door into a skin of
-the wall) is freed by carving the static scene, not reported as a broken twin.
+"""Repair of the small defects a reconstructed twin carries, so that the twin loads with its
+contacts on and nothing in contact at q = 0: a part that sits a few millimetres into the static
+scene (a drawer front 4 mm into a carcass box, a door into a skin of the wall) is freed by
+carving the static scene, and two neighbouring fronts whose rectangles overlap by a few
+millimetres are both trimmed back, not reported as a broken twin.
 
-Each static collision box that a part penetrates at q = 0 by more than ``min_depth`` (and at
-most ``max_depth``: deeper is no small defect but a wrong rectangle or axis, left to the checks
-to report) loses that much plus ``clearance`` on the face the part presses on (the box axis
-most aligned with the contact normal). A box that would become thinner than ``min_half`` x 2
-is removed. Repeated until nothing penetrates beyond ``min_depth`` (or ``max_rounds``). A static
-mesh piece is never changed (it is reported by the checks). Lengths m.
+Part vs part (:func:`part_part_overlaps`, done first): two collision boxes of different parts
+that intersect at q = 0 are separated along the in-plane axis (any box axis but the two boxes'
+thickness axes, the thinnest ones) on which they overlap least: each loses half that overlap
+plus half of ``clearance`` on the faces that meet. Through the thickness they are never
+separated, since two fronts in one plane that are pushed apart in depth would still block each
+other as either opens. An overlap deeper than ``max_depth`` (a part detected twice, one inside
+the other) or a trim that would leave a box thinner than ``min_half`` x 2 is left as it is and
+reported ("too deep" / "too thin"); the checks then name the pair.
+
+Part vs static: each static collision box that a part penetrates at q = 0 by more than
+``min_depth`` (and at most ``max_depth``: deeper is no small defect but a wrong rectangle or
+axis, left to the checks to report) loses that much plus ``clearance`` on the face the part
+presses on (the box axis most aligned with the contact normal). A box that would become thinner
+than ``min_half`` x 2 is removed. Repeated until nothing penetrates beyond ``min_depth`` (or
+``max_rounds``). A static mesh piece is never changed (it is reported by the checks). Lengths m.
 """
 
 from dataclasses import dataclass, replace
@@ -17,7 +28,7 @@ import numpy as np
 
 from drawer_lib.bodies import Shape, TwinModel
 from drawer_lib.errors import ConfigError
-from drawer_lib.geometry.boxes import OrientedBox
+from drawer_lib.geometry.boxes import OrientedBox, separated
 from drawer_lib.sim.config import SimConfig
 
 
@@ -26,7 +37,7 @@ class RepairConfig:
     """``twin.repair``: see the module doc."""
 
     enabled: bool = True
-    min_depth: float = 0.001
+    min_depth: float = 0.0002
     max_depth: float = 0.02
     clearance: float = 0.001
     min_half: float = 0.001
@@ -74,6 +85,85 @@ def static_part_penetrations(model: TwinModel, sim: SimConfig) -> list[tuple[int
     return [(k, pid, dep, n) for (k, pid), (dep, n) in sorted(best.items())]
 
 
+def _extent(box: OrientedBox, axis: np.ndarray) -> float:
+    """Half the extent of ``box`` along the unit ``axis`` (m)."""
+    return float(np.sum(box.half * np.abs(box.rotation.T @ axis)))
+
+
+def _thin_axis(box: OrientedBox) -> np.ndarray:
+    return box.rotation[:, int(np.argmin(box.half))]
+
+
+def inplane_overlap(a: OrientedBox, b: OrientedBox) -> tuple[float, np.ndarray] | None:
+    """The least overlap of boxes ``a`` and ``b`` (m) over the face axes of both that are more
+    than 45 deg from either box's thickness axis, and that axis (unit, pointing from ``a`` to
+    ``b``); None when such an axis separates them or when there is none (boxes turned across
+    each other). Overlap along axis e: the two projected half extents minus the centres'
+    distance along e (separating-axis test)."""
+    thin = (_thin_axis(a), _thin_axis(b))
+    d = b.center - a.center
+    best: tuple[float, np.ndarray] | None = None
+    for e in [*a.rotation.T, *b.rotation.T]:
+        if max(abs(float(e @ t)) for t in thin) > np.sqrt(0.5):
+            continue
+        ov = _extent(a, e) + _extent(b, e) - abs(float(d @ e))
+        if ov <= 0:
+            return None
+        if best is None or ov < best[0]:
+            best = (ov, e * (1.0 if d @ e >= 0 else -1.0))
+    return best
+
+
+def part_part_overlaps(model: TwinModel) -> list[tuple[str, int, str, int, float, np.ndarray]]:
+    """At q = 0, every pair of collision boxes of two different parts that intersect: (part a,
+    its box index, part b, its box index, their :func:`inplane_overlap` (m), the axis from a to
+    b); pairs without an in-plane axis are left out. Meshes are not tested here (the
+    checks measure them)."""
+    boxes = [(p.id, k, s.box) for p in model.parts for k, s in enumerate(p.collision) if s.kind == "box"]
+    out = []
+    for i, (pa, ka, a) in enumerate(boxes):
+        for pb, kb, b in boxes[i + 1:]:
+            if pa == pb or separated(a, b):
+                continue
+            ov = inplane_overlap(a, b)
+            if ov is None:
+                # no in-plane axis (boxes turned across each other): nothing to trim along; the
+                # checks measure what is left
+                continue
+            out.append((pa, ka, pb, kb, ov[0], ov[1]))
+    return out
+
+
+def _repair_parts(model: TwinModel, cfg: RepairConfig) -> tuple[TwinModel, list[dict], dict[str, dict[int, Shape]]]:
+    """Part-vs-part trims of :func:`repair_penetrations` (module doc)."""
+    shapes = {p.id: list(p.collision) for p in model.parts}
+    changed: dict[str, dict[int, Shape]] = {}
+    log: list[dict] = []
+    skip: set[tuple[str, int, str, int]] = set()
+    for _ in range(cfg.max_rounds):
+        current = replace(model, parts=[replace(p, collision=shapes[p.id]) for p in model.parts])
+        hits = [h for h in part_part_overlaps(current) if h[4] > cfg.min_depth and h[:4] not in skip]
+        if not hits:
+            break
+        for pa, ka, pb, kb, ov, axis in hits:
+            rec = {"part": pa, "piece": ka, "other": pb, "other_piece": kb, "depth_m": round(ov, 5)}
+            if ov > cfg.max_depth:
+                rec["action"] = "too deep"
+                skip.add((pa, ka, pb, kb))
+            else:
+                a = _carve(shapes[pa][ka].box, axis, (ov + cfg.clearance) / 2)
+                b = _carve(shapes[pb][kb].box, -axis, (ov + cfg.clearance) / 2)
+                if min(a.half.min(), b.half.min()) < cfg.min_half:
+                    rec["action"] = "too thin"
+                    skip.add((pa, ka, pb, kb))
+                else:
+                    shapes[pa][ka] = changed.setdefault(pa, {})[ka] = Shape("box", box=a)
+                    shapes[pb][kb] = changed.setdefault(pb, {})[kb] = Shape("box", box=b)
+                    rec["action"] = "carved"
+            log.append(rec)
+    return replace(model, parts=[replace(p, collision=shapes[p.id]) for p in model.parts]), log, changed
+
+
 def _carve(box: OrientedBox, normal: np.ndarray, amount: float) -> OrientedBox:
     """``box`` with the face that ``normal`` (unit, out of the box toward what presses on it)
     points through moved back by ``amount``."""
@@ -86,17 +176,20 @@ def _carve(box: OrientedBox, normal: np.ndarray, amount: float) -> OrientedBox:
 
 
 def repair_penetrations(model: TwinModel, sim: SimConfig, cfg: RepairConfig
-                        ) -> tuple[TwinModel, list[dict], list[tuple[int, Shape | None]]]:
-    """The twin with its static collision carved free of the parts at q = 0 (module doc); what
-    was done, ``[{"part", "static_piece", "depth_m", "action": "carved" | "removed" | "too deep"
-    | "not a box"}]`` (``static_piece``: the index in the input's ``static_collision``); and
-    per kept piece of the output's static collision (index in the input, its new shape when
-    carved else None)."""
+                        ) -> tuple[TwinModel, list[dict], list[tuple[int, Shape | None]], dict[str, dict[int, Shape]]]:
+    """The twin with its parts' overlapping boxes trimmed apart and its static collision carved
+    free of the parts at q = 0 (module doc). Returns (the model; what was done, part vs part
+    ``{"part", "piece", "other", "other_piece", "depth_m", "action": "carved" | "too deep" |
+    "too thin"}`` then part vs static ``{"part", "static_piece", "depth_m", "action": "carved" |
+    "removed" | "too deep" | "not a box"}`` (``static_piece``: the index in the input's
+    ``static_collision``); per kept piece of the output's static collision (index in the input,
+    its new shape when carved else None); per part the collision pieces trimmed, {index: new
+    shape})."""
     static = list(model.static_collision)
     alive = [True] * len(static)
-    log: list[dict] = []
     if not cfg.enabled or not model.parts:
-        return model, log, [(k, None) for k in range(len(static))]
+        return model, [], [(k, None) for k in range(len(static))], {}
+    model, log, part_changed = _repair_parts(model, cfg)
     carved: set[int] = set()
     skip: set[tuple[int, str]] = set()
     for _ in range(cfg.max_rounds):
@@ -128,4 +221,4 @@ def repair_penetrations(model: TwinModel, sim: SimConfig, cfg: RepairConfig
             log.append(rec)
     kept = [k for k in range(len(static)) if alive[k]]
     out = replace(model, static_collision=[static[k] for k in kept])
-    return out.validate(), log, [(k, static[k] if k in carved else None) for k in kept]
+    return out.validate(), log, [(k, static[k] if k in carved else None) for k in kept], part_changed

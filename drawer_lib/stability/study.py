@@ -438,9 +438,9 @@ def extreme_cases() -> list[Case]:
 
 def twin_case(m: mujoco.MjModel, parts: Sequence, duration: float | None = None) -> Case:
     """The twin's own parts, nominal: every articulated part of the compiled twin ``m`` driven
-    open at once through its actuator (its drives turned on) (its ``ctrlrange`` top speed) with contacts off (the
-    parts do not touch each other or the static scene by default; the rigid objects' contacts
-    are the ``contact_rich`` case and the twin's rest check), for ``duration`` s (default: until
+    open at once through its actuator (its drives turned on) (its ``ctrlrange`` top speed) with contacts off
+    (neighbours opened all at once would meet, which no user does; contacts are the
+    ``contact_rich`` and ``robot_grasp`` cases and the twin's checks), for ``duration`` s (default: until
     the slowest reaches its upper limit, + 0.2 s). Observed: each part's joint, scaled to metres
     at its front's farthest point from the axis (a prismatic joint is already in metres), so
     the error is how far a point of the front strays. ``parts``: :class:`drawer_lib.io.parts.Part`."""

@@ -103,6 +103,13 @@ def _box_json(s: Shape) -> dict:
     return {"kind": "box", **s.box.to_json()}
 
 
+def _overlap_with(r: dict) -> str:
+    """What a repair record (:func:`~drawer_lib.sim.repair.repair_penetrations`) overlapped."""
+    if "other" in r:
+        return f"piece {r['piece']} into {r['other']!r} piece {r['other_piece']}"
+    return f"static piece {r['static_piece']}"
+
+
 def _tile(img: np.ndarray, width: int) -> np.ndarray:
     h = max(1, round(img.shape[0] * width / img.shape[1]))
     return np.asarray(Image.fromarray(img).resize((width, h), Image.BILINEAR))
@@ -124,12 +131,11 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
         if b.id not in by_id:
             raise InputError(f"{complete_dir}: body {b.id!r} is not a part of {parts_path}")
     t0 = time.perf_counter()
-    model, repairs, kept = repair_penetrations(model, sim, cfg.repair)
+    model, repairs, kept, part_changed = repair_penetrations(model, sim, cfg.repair)
     if repairs:
-        print(f"[twin] repaired {sum(r['action'] in ('carved', 'removed') for r in repairs)} static piece(s) a part "
-              "penetrated at q = 0:\n" + "\n".join(f"  {r['part']}: static piece {r['static_piece']} "
-                                                   f"{r['depth_m'] * 1000:.1f} mm deep, {r['action']}" for r in repairs),
-              flush=True)
+        print(f"[twin] repaired {sum(r['action'] in ('carved', 'removed') for r in repairs)} overlap(s) at q = 0:\n"
+              + "\n".join(f"  {r['part']}: {_overlap_with(r)} {r['depth_m'] * 1000:.1f} mm deep, {r['action']}"
+                          for r in repairs), flush=True)
     m: dict = {"repair_s": round(time.perf_counter() - t0, 3),
                "n_repairs": sum(r["action"] in ("carved", "removed") for r in repairs),
                "n_unrepaired": sum(r["action"] not in ("carved", "removed") for r in repairs),
@@ -145,6 +151,7 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     m["build_s"] = round(time.perf_counter() - t0, 3)
     write_mjcf(spec, out)
     failed: dict[str, list[str]] = {}
+    stops: dict[str, dict] = {}
     if cfg.check:
         t0 = time.perf_counter()
         try:
@@ -160,6 +167,8 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
                   f"reported (twin.on_check_failure = report):\n" + "\n".join(f["message"] for f in e.failures),
                   flush=True)
         rep["repairs"] = repairs
+        stops = {pid: {"q": r["stop_q"], "by": r["stopped_by"]} for pid, r in rep.get("parts", {}).items()
+                 if "stop_q" in r}
         m["check_s"] = round(time.perf_counter() - t0, 3)
         m["n_check_failures"] = len(rep["failures"])
         m["n_parts_failing_checks"] = len(failed)
@@ -195,9 +204,12 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
         twin_json["parts"].append({"id": b.id, "kind": by_id[b.id].kind, "body": b.id, "joint": b.id,
                                    "actuator": b.id if by_id[b.id].articulated else None,
                                    "gaussians": f"{gdir}/{b.id}.ply" if b.id in gauss else None,
-                                   "collision": _collision_files(raw[b.id]["collision"], complete_dir, out),
+                                   "collision": _collision_files(
+                                       [_box_json(part_changed[b.id][k]) if k in part_changed.get(b.id, {}) else e
+                                        for k, e in enumerate(raw[b.id]["collision"])], complete_dir, out),
                                    "interior": raw[b.id].get("interior", {}),
                                    "grasp": raw[b.id].get("grasp"),
+                                   "stop": stops.get(b.id),
                                    "checks": sorted(set(failed.get(b.id, []))) if cfg.check else None,
                                    "confidence": by_id[b.id].extra.get("confidence"),
                                    "low_margin": bool(by_id[b.id].extra.get("low_margin", False))})

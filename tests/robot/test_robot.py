@@ -211,11 +211,28 @@ def test_the_robot_opens_and_closes_the_drawer_and_it_transfers_to_itself(robot_
     assert a["twin"]["q_hold"] >= 0.85 * 0.8 * 0.4 and a["twin"]["q_end"] < 0.05
     assert a["twin"]["max_arm_contact_m"] < 0.01 and a["transfer"]["gt_id"] == "drawer_0"
     info, ds, tasks, ep = _read_like_lerobot(d / "dataset")
-    assert info["total_episodes"] == 2 == m["dataset_episodes"] and list(tasks.index) == [
-        "open the prismatic drawer_0", "close the prismatic drawer_0"]
+    assert info["total_episodes"] == 3 == m["dataset_episodes"] and list(tasks.index) == [
+        "open the prismatic drawer_0", "close the prismatic drawer_0",
+        "pick up the block from the counter and place it in the drawer drawer_0"]
     assert np.asarray(ds[0]["observation.images.front"]).shape == (12, 16, 3)
     q = np.array(ds["observation.part_q"])
     assert q.max() >= 0.85 * 0.32 and np.isfinite(np.array(ds["action"])).all()
+
+
+def test_the_robot_takes_the_block_from_the_counter_into_the_opened_drawer(robot_run):
+    """The carcass top (z 0.8) is the counter: the block stands on it behind the front, the
+    drawer is opened to 80 % of its 0.4 m, and the block ends inside the drawer, on its bottom
+    (z 0.5 + 18 + 3 + 12 mm), in the twin and in the ground truth (the same kitchen)."""
+    m, d = robot_run["same"]
+    assert m["robot_pick_place_n"] == 1 and m["robot_pick_place_success"] == 1.0, m
+    assert m["robot_pick_place_transfer_success"] == 1.0
+    (r,) = json.loads((d / "attempts.json").read_text())["pick_place"]
+    assert r["counter_z"] == pytest.approx(0.8, abs=1e-6) and r["q_open"] == pytest.approx(0.32)
+    assert r["pick"][2] == pytest.approx(0.8 + 0.025 + 0.001, abs=1e-6) and r["pick"][1] > 0.1
+    end = np.asarray(r["twin"]["object_end"])
+    assert -0.32 < end[1] < 0.0 and abs(end[0]) < 0.25  # in the opened drawer, in front of the carcass
+    assert end[2] == pytest.approx(0.5 + F.T + 0.003 + F.TD + 0.025, abs=0.003)  # standing on its bottom
+    assert r["episodes"] == [2] and r["transfer"]["placed"]
 
 
 def test_a_wrong_joint_does_not_transfer_and_says_why(robot_run):
@@ -223,6 +240,8 @@ def test_a_wrong_joint_does_not_transfer_and_says_why(robot_run):
     assert m["robot_open_success"] == 1.0 and m["robot_transfer_success"] == 0.0
     a = json.loads((d / "attempts.json").read_text())["parts"][0]
     assert a["transfer"]["reason"] == "wrong axis" and not a["transfer"]["opened"]
+    (r,) = json.loads((d / "attempts.json").read_text())["pick_place"]
+    assert r["twin"]["placed"] and r["transfer"] == {"placed": False, "reason": "wrong axis", "gt_id": "drawer_0"}
     assert "observation.images.front" not in json.loads((d / "dataset" / "meta" / "info.json").read_text())["features"]
 
 
@@ -252,3 +271,38 @@ def test_the_ground_truth_kitchen_has_the_layouts_true_joints():
         assert m.body_mass[ix["body"]] > 0.1  # its pieces are solids with the part density
     video = to_typed(SceneConfig, {"source": "video", "video": {"path": "x.mp4"}}, "v", strict=False)
     assert scene_ground_truth(video, SimConfig()) is None
+
+
+def test_the_block_avoids_what_stands_on_the_counter_and_needs_a_counter():
+    """The first spot probed (15 cm behind the front, centred) is taken by a cup: the block goes
+    to the next free one; with the carcass's top removed there is no counter (the rays meet the
+    drawer, a part, or the floor far below) and no spot; a block wider than the hand is refused."""
+    from dataclasses import replace
+
+    from drawer_lib.errors import ConfigError
+    from drawer_lib.robot.pick_place import add_object, counter_spot
+    from drawer_lib.robot.plan import PickPlaceConfig
+    from drawer_lib.sim.mjcf import build_spec
+
+    pp = PickPlaceConfig()
+    model = _drawer_kitchen()
+    part = F.parts_of(model).parts[0]
+
+    def spot(tm):
+        spec = build_spec(tm)
+        add_object(spec, np.array([0.0, 0.0, -10.0]), pp)
+        m = spec.compile()
+        d = mujoco.MjData(m)
+        mujoco.mj_kinematics(m, d)
+        return counter_spot(m, d, part, pp)
+
+    pos, z = spot(model)
+    assert z == pytest.approx(0.8) and pos[:2] == pytest.approx([0.0, 0.15])
+    cup = F.cup(0.0, 0.15, 0.8, "cup_0", radius=0.03)
+    pos2, _ = spot(replace(model, rigid=[cup]))
+    assert abs(pos2[0]) == pytest.approx(0.1) or pos2[1] > 0.2  # moved off the cup
+    assert np.hypot(pos2[0], pos2[1] - 0.15) > 0.03 + 0.02
+    no_top = [s for s in model.static_collision if not (s.box.center[2] > 0.78)]
+    assert spot(replace(model, static_collision=no_top)) is None
+    with pytest.raises(ConfigError, match="gripper's opening"):
+        PickPlaceConfig(size=(0.04, 0.09, 0.05))

@@ -139,17 +139,22 @@ def _failures(excinfo) -> set[tuple[str, str]]:
 
 
 def test_drawer_opening_into_the_back_wall_fails_and_is_named():
-    """Its axis points into the carcass: the path check names it (part-vs-static contacts
-    off); with them on, the drive and the pull are blocked too."""
+    """Its axis points into the carcass: with part-vs-static contacts off the path check names
+    it and the drive and pull go through the wall; on (the default), it is also blocked: it
+    stops where it meets the wall, almost at once."""
     twin = F.single(F.drawer_cabinet, reverse=True)
+    off = SimConfig(contact=ContactConfig(part_static=False, part_part=False))
     with pytest.raises(TwinCheckError, match="part 'drawer_0': opening it, it penetrates the static scene") as e:
-        check_twin(compile_spec(build_spec(twin)), twin)
+        check_twin(compile_spec(build_spec(twin, off)), twin, off)
     assert _failures(e) == {("drawer_0", "path")}
     assert e.value.report["parts"]["drawer_0"]["path_penetration_m"] > 0.01
-    cfg = SimConfig(contact=ContactConfig(part_static=True))
-    with pytest.raises(TwinCheckError, match="part 'drawer_0': driven at 0.5 m/s it reached only") as e:
-        check_twin(compile_spec(build_spec(twin, cfg)), twin, cfg)
-    assert _failures(e) == {("drawer_0", "drive"), ("drawer_0", "pull"), ("drawer_0", "path")}
+    with pytest.raises(TwinCheckError, match="part 'drawer_0': with every other part closed it runs into the "
+                       "static scene at q = ") as e:
+        check_twin(compile_spec(build_spec(twin)), twin)
+    assert _failures(e) == {("drawer_0", "blocked"), ("drawer_0", "path")}
+    rec = e.value.report["parts"]["drawer_0"]
+    # the drawer box ends 32 mm before the carcass's back wall: it stops there + the 0.5 mm stop depth
+    assert rec["stopped_by"] == "static" and rec["stop_q"] == pytest.approx(0.482 - 0.45 + 0.0005, abs=1e-5)
 
 
 def test_part_placed_inside_the_static_scene_fails_the_penetration_check():
@@ -221,7 +226,7 @@ def test_model_that_does_not_match_the_twin_is_named():
 def test_tiny_part_drives_stably():
     """A 3 x 3 cm drawer (~10 g, inertia ~1e-6 kg·m^2) opens under its drive without
     warnings (the armature and the implicit servo keep it well conditioned)."""
-    shapes = F.drawer_box(-0.015, 0.015, 0.0, 0.02, 0.0, 0.03)
+    shapes = F.drawer_box(-0.015, 0.015, 0.001, 0.021, 0.0, 0.03)  # 1 mm above the floor it would rub on
     part = F.PartBody(id="tiny", kind="prismatic", axis_origin=np.zeros(3), axis_direction=np.array([0.0, -1.0, 0.0]),
                       limits=(0.0, 0.025), visual=[], collision=shapes, density=600.0)
     twin = TwinModel(static_collision=[F.floor()], parts=[part])
@@ -266,3 +271,61 @@ def test_a_lift_up_flap_needs_its_lift_mechanism():
     door = F.single(F.door_cabinet)
     md = compile_spec(build_spec(door))
     assert md.body_gravcomp[part_index(md, "door_0")["body"]] == 0.0
+
+
+def _door_and_obstacle(x: tuple[float, float], y: tuple[float, float]) -> TwinModel:
+    """The door cabinet (door hinged at x = 0.95, opening to -y) and a neighbouring part standing
+    in front of it: a 30 cm tall box over ``x`` x ``y`` (m) on a lift joint (+z, held on its
+    lower limit by gravity, so the door's sideways push cannot move it)."""
+    walls, door = F.door_cabinet()
+    block = F.slab((x[0], y[0], 0.2), (x[1], y[1], 0.5))
+    lift = F.PartBody(id="lift_0", kind="prismatic", axis_origin=np.array([sum(x) / 2, sum(y) / 2, 0.35]),
+                      axis_direction=np.array([0.0, 0.0, 1.0]), limits=(0.0, 0.1), visual=[], collision=[block],
+                      density=F.DENSITY)
+    return TwinModel(static_collision=[F.floor(), *walls], parts=[door, lift])
+
+
+def _first_contact_angle(twin: TwinModel, step: float = 2e-4) -> float:
+    """Slow reference: the door's panel turned about its hinge on a fine grid until the
+    separating-axis test first finds it touching the neighbour's box."""
+    from drawer_lib.geometry.boxes import OrientedBox, separated
+
+    door, lift = twin.parts
+    panel, block = door.collision[0].box, lift.collision[0].box
+    h = door.axis_origin
+    for th in np.arange(0.0, door.limits[1], step):
+        c, s = math.cos(th), math.sin(th)
+        R = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # th about -z
+        if not separated(OrientedBox(h + R @ (panel.center - h), R @ panel.rotation, panel.half), block):
+            return float(th)
+    return door.limits[1]
+
+
+def test_a_door_stops_where_its_neighbour_stands_and_the_checks_measure_that_stop():
+    """A neighbour's box 7 cm right of the hinge, 35-45 cm out: the door meets it near 82 deg.
+    The stop (0.5 mm into the box) is that angle plus at most 0.5 mm / 0.35 m; the door opens
+    to 95 % of it under its drive and 90 % under the pull, and no check fails; in the
+    simulation it rests against the box, not at its 90 deg limit."""
+    twin = _door_and_obstacle((1.0, 1.02), (-0.45, -0.35))
+    ref = _first_contact_angle(twin)
+    assert math.radians(75) < ref < math.radians(88)
+    m = compile_spec(build_spec(twin))
+    r = check_twin(m, twin)
+    rec = r["parts"]["door_0"]
+    assert rec["stopped_by"] == "lift_0" and 0.0 <= rec["stop_q"] - ref < 0.0005 / 0.35 + 2e-4
+    assert r["n_parts_stopped"] == 1 and r["travel_fraction_min"] == pytest.approx(rec["stop_q"] / (math.pi / 2))
+    assert rec["drive_final_q"] < rec["stop_q"] + 0.01 < math.pi / 2
+    assert r["parts"]["lift_0"]["stopped_by"] is None
+
+
+def test_a_door_its_neighbour_stops_before_half_its_range_is_blocked():
+    """The neighbour 36 cm right of the hinge and 30 cm out: the door meets it near 40 deg, below
+    half its range: the failure names the neighbour; without part-part contacts it is free."""
+    twin = _door_and_obstacle((1.30, 1.32), (-0.45, -0.30))
+    with pytest.raises(TwinCheckError, match="part 'door_0': with every other part closed it runs into 'lift_0'") as e:
+        check_twin(compile_spec(build_spec(twin)), twin)
+    assert _failures(e) == {("door_0", "blocked")}
+    assert e.value.report["parts"]["door_0"]["stop_q"] == pytest.approx(_first_contact_angle(twin), abs=0.002)
+    off = SimConfig(contact=ContactConfig(part_part=False))
+    r = check_twin(compile_spec(build_spec(twin, off)), twin, off)
+    assert r["parts"]["door_0"]["stopped_by"] is None and r["n_parts_stopped"] == 0

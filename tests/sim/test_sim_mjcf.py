@@ -107,20 +107,22 @@ def test_masses_are_density_times_volume(kitchen):
         np.testing.assert_allclose(full(m, b), full(ref, b), rtol=1e-5, atol=1e-9)
 
 
-def test_contacts_default_exclusion_and_cup_collisions(kitchen):
-    """Parts do not collide with the static scene (default), but with rigid objects and each
-    other; rigid objects collide with everything; visual geoms with nothing."""
+def test_contacts_default_and_exclusions(kitchen):
+    """By default everything collides with everything (parts with the static scene and each
+    other, rigid objects with all); either part contact can be switched off; visual geoms
+    collide with nothing."""
     twin, m = kitchen
     bits = contact_bits(SimConfig())
-    assert bits["static"] == (BIT_STATIC, BIT_RIGID)
-    assert bits["part"] == (BIT_PART, BIT_PART | BIT_RIGID)
+    assert bits["static"] == (BIT_STATIC, BIT_PART | BIT_RIGID)
+    assert bits["part"] == (BIT_PART, BIT_STATIC | BIT_PART | BIT_RIGID)
     assert bits["rigid"] == (BIT_RIGID, BIT_STATIC | BIT_PART | BIT_RIGID)
 
-    def collide(a, b):
+    def collide(a, b, bits=bits):
         return bool(bits[a][0] & bits[b][1] or bits[b][0] & bits[a][1])
 
-    assert collide("rigid", "static") and collide("rigid", "part") and collide("rigid", "rigid")
-    assert collide("part", "part") and not collide("part", "static")
+    assert all(collide(a, b) for a in bits for b in bits if not a == b == "static")
+    off = contact_bits(SimConfig(contact=ContactConfig(part_static=False, part_part=True)))
+    assert not collide("part", "static", off) and collide("part", "part", off) and collide("rigid", "static", off)
     on = contact_bits(SimConfig(contact=ContactConfig(part_static=True, part_part=False)))
     assert on["part"][1] & BIT_STATIC and not on["part"][1] & BIT_PART and on["static"][1] & BIT_PART
     vis = m.geom_group != GROUP_COLLISION

@@ -9,7 +9,7 @@ import sim_fixtures as F
 from drawer_lib.bodies import PartBody, TwinModel, box_shape
 from drawer_lib.errors import ConfigError
 from drawer_lib.sim.config import SimConfig
-from drawer_lib.sim.repair import RepairConfig, repair_penetrations, static_part_penetrations
+from drawer_lib.sim.repair import RepairConfig, part_part_overlaps, repair_penetrations, static_part_penetrations
 
 SIM = SimConfig()
 
@@ -34,7 +34,7 @@ def test_a_rotated_box_pressing_into_a_part_is_carved_on_the_face_it_presses_wit
     (hit,) = [h for h in static_part_penetrations(model, SIM) if h[0] == 1]
     assert hit[2] == pytest.approx(0.006, abs=1e-6)
     np.testing.assert_allclose(hit[3], -R[:, 1], atol=1e-6)  # from the side into the panel: -v of the box
-    out, log, kept = repair_penetrations(model, SIM, RepairConfig())
+    out, log, kept, _ = repair_penetrations(model, SIM, RepairConfig())
     assert [(r["static_piece"], r["action"]) for r in log] == [(1, "carved")]
     new = out.static_collision[1].box
     np.testing.assert_allclose(new.half, [0.2, 0.02 - 0.0035, 0.2], atol=1e-9)
@@ -47,12 +47,49 @@ def test_a_thin_skin_is_removed_a_deep_overlap_and_a_mesh_are_left_to_the_checks
     skin = box_shape([0.0, 0.0095, 0.5], [0.2, 0.001, 0.2])  # 2 mm thick, 1.5 mm into the panel
     deep = box_shape([0.0, 0.03 - 0.04 + 0.01, 0.9], [0.1, 0.03, 0.2])  # 4 cm into it, at its top
     model = TwinModel([], [F.floor(), skin, deep], [panel_part()], [])
-    out, log, kept = repair_penetrations(model, SIM, RepairConfig())
+    out, log, kept, _ = repair_penetrations(model, SIM, RepairConfig())
     actions = {r["static_piece"]: r["action"] for r in log}
     assert actions == {1: "removed", 2: "too deep"}
     assert [k for k, _ in kept] == [0, 2] and len(out.static_collision) == 2
     # off: nothing changes
-    same, none, kept0 = repair_penetrations(model, SIM, RepairConfig(enabled=False))
+    same, none, kept0, _ = repair_penetrations(model, SIM, RepairConfig(enabled=False))
     assert none == [] and same is model and [k for k, _ in kept0] == [0, 1, 2]
     with pytest.raises(ConfigError, match="twin.repair"):
         RepairConfig(min_depth=0.03, max_depth=0.02)
+
+
+def _front(pid: str, x0: float, x1: float, z0: float = 0.1, z1: float = 0.5, y: float = 0.0) -> PartBody:
+    """A 20 mm front over x [x0, x1], z [z0, z1] with its back face at y (m), opening to -y."""
+    panel = box_shape([(x0 + x1) / 2, y - 0.01, (z0 + z1) / 2], [(x1 - x0) / 2, 0.01, (z1 - z0) / 2])
+    return PartBody(pid, "prismatic", np.array([(x0 + x1) / 2, y, (z0 + z1) / 2]), np.array([0.0, -1.0, 0.0]),
+                    (0.0, 0.3), [], [panel], 600.0)
+
+
+def test_two_fronts_overlapping_in_their_plane_are_trimmed_apart_along_it():
+    """Neighbouring fronts whose rectangles overlap by 6 mm: 6 mm is less than their 20 mm
+    thickness, yet the trim runs along x (in their plane), each losing 3.5 mm; afterwards nothing
+    overlaps, and the thickness is untouched."""
+    a, b = _front("drawer_0", 0.0, 0.5), _front("drawer_1", 0.494, 0.9)
+    model = TwinModel([], [F.floor()], [a, b], [])
+    ((pa, ka, pb, kb, ov, axis),) = part_part_overlaps(model)
+    assert (pa, ka, pb, kb) == ("drawer_0", 0, "drawer_1", 0) and ov == pytest.approx(0.006)
+    np.testing.assert_allclose(axis, [1.0, 0.0, 0.0], atol=1e-12)
+    out, log, _, changed = repair_penetrations(model, SIM, RepairConfig())
+    assert [(r["part"], r["other"], r["action"]) for r in log] == [("drawer_0", "drawer_1", "carved")]
+    na, nb = out.parts[0].collision[0].box, out.parts[1].collision[0].box
+    np.testing.assert_allclose(na.half, [0.25 - 0.00175, 0.01, 0.2], atol=1e-12)
+    np.testing.assert_allclose(nb.half, [0.203 - 0.00175, 0.01, 0.2], atol=1e-12)
+    assert na.center[0] + na.half[0] == pytest.approx(0.497 - 0.0005)  # 0.5 mm of the 1 mm clearance each
+    assert nb.center[0] - nb.half[0] == pytest.approx(0.497 + 0.0005)
+    assert set(changed) == {"drawer_0", "drawer_1"} and part_part_overlaps(out) == []
+    assert all(h[2] <= 1e-9 for h in static_part_penetrations(out, SIM))  # the floor stays clear
+
+
+def test_a_front_detected_twice_is_left_and_reported():
+    """One front inside another (a part detected twice): 30 cm of overlap, too deep to trim;
+    reported, nothing changed."""
+    a, b = _front("drawer_0", 0.0, 0.5), _front("drawer_1", 0.1, 0.3, 0.2, 0.4)
+    out, log, _, changed = repair_penetrations(TwinModel([], [F.floor()], [a, b], []), SIM, RepairConfig())
+    assert [(r["part"], r["other"], r["action"]) for r in log] == [("drawer_0", "drawer_1", "too deep")]
+    assert log[0]["depth_m"] == pytest.approx(0.3)  # b must move 30 cm along x or z to clear a
+    assert changed == {} and out.parts[0].collision[0].box.half.tolist() == [0.25, 0.01, 0.2]

@@ -183,3 +183,34 @@ def test_a_failing_check_is_reported_per_part_and_the_twin_is_still_written(tmp_
                      on_check_failure="error")
     with pytest.raises(TwinCheckError, match=door.id):
         _run(tmp_path, exact_capture, "twin2", cfg)
+
+
+def test_double_doors_whose_fronts_overlap_are_trimmed_apart_and_each_part_has_its_stop(tmp_path, exact_capture):
+    """A second door beside the fixture's, its front overlapping the first's by 6 mm in their
+    plane (a double door whose reconstructed rectangles overlap): both panels are trimmed by
+    3.5 mm at the faces that meet, every check passes with the parts' contacts on, twin.json
+    lists the trimmed boxes, and each part's stop is its upper limit (nothing stops it)."""
+    model = kitchen()
+    door = next(p for p in model.parts if p.kind == "revolute" and p.unit_axis[2] < -0.5)
+    b = door.collision[0].box
+    x1 = b.center[0] + b.half[0]
+    panel = box_shape([(x1 - 0.006 + 1.9) / 2, b.center[1], b.center[2]], [(1.9 - x1 + 0.006) / 2, *b.half[1:]])
+    twin_door = PartBody("door_9", "revolute", np.array([1.9, door.axis_origin[1], door.axis_origin[2]]),
+                         np.array([0.0, 0.0, 1.0]), (0.0, np.pi / 2), [], [panel], door.density)
+    model = dataclasses.replace(model, parts=[*model.parts, twin_door])
+    (tmp_path / "complete").mkdir()
+    write_complete(tmp_path / "complete", model, {}, {}, {})
+    write_parts(tmp_path / "parts.json", parts_of(model))
+    m = _run(tmp_path, exact_capture, "twin")
+    checks = json.loads((tmp_path / "twin" / "checks.json").read_text())
+    assert checks["failures"] == [] and m["n_repairs"] == 1 and SimConfig().contact.part_part
+    (r,) = checks["repairs"]
+    assert {r["part"], r["other"]} == {door.id, "door_9"} and r["action"] == "carved"
+    assert r["depth_m"] == pytest.approx(0.006, abs=1e-9)
+    tj = {p["id"]: p for p in json.loads((tmp_path / "twin" / "twin.json").read_text())["parts"]}
+    trimmed = tj[door.id]["collision"][0]
+    assert trimmed["half"][0] == pytest.approx(b.half[0] - 0.0035 / 2, abs=1e-9)
+    assert trimmed["center"][0] + trimmed["half"][0] == pytest.approx(x1 - 0.0035, abs=1e-9)
+    for p in model.parts:
+        assert tj[p.id]["stop"] == {"q": pytest.approx(p.limits[1]), "by": None}
+    assert checks["penetration_parts_max_m"] == 0.0 and m["sim_n_parts_stopped"] == 0
