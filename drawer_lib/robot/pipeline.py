@@ -33,7 +33,7 @@ import json
 import math
 import time
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -311,7 +311,8 @@ def pick_and_place(cfg: RobotConfig, p: Part, q_open: float, twin_spec, ik: Pand
     tol = (cfg.ik_tol_m, math.radians(cfg.ik_tol_deg))
     pseudo = {"position": (0.5 * (pick + place)).tolist(), "approach": (-n).tolist(), "closing_axis": u.tolist()}
     found, seen = None, set()
-    for base, _, _ in base_candidates(p, pseudo, cfg.base, 0.0):
+    search = replace(cfg.base, heights=pp.base_heights, distances=pp.base_distances, pitches_deg=(0.0,))
+    for base, _, _ in base_candidates(p, pseudo, search, 0.0):
         key = (*np.round(base.pos, 4), round(base.yaw, 4))
         if key in seen:
             continue

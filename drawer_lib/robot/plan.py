@@ -59,7 +59,10 @@ class BaseSearch:
 class PickPlaceConfig:
     """``robot.pick_place`` (:mod:`drawer_lib.robot.pick_place`). Lengths m, mass kg. ``max_drawers``: pick-and-place
     demonstrations per scene, on the drawers (prismatic parts of the drawer kind) highest first
-    (nearest the counter); 0 turns the task off. ``friction``: the block's sliding friction."""
+    (nearest the counter); 0 turns the task off. ``friction``: the block's sliding friction.
+    ``base_heights``, ``base_distances``: the base search's heights and distances (m, below and
+    back from the middle of the pick and the place; the lateral offsets are the opening task's
+    ``base``)."""
 
     max_drawers: int = 1
     size: tuple[float, ...] = (0.04, 0.04, 0.05)
@@ -71,6 +74,8 @@ class PickPlaceConfig:
     lift: float = 0.1
     drop: float = 0.01
     settle: float = 0.5
+    base_heights: tuple[float, ...] = (0.55, 0.7, 0.4, 0.25)
+    base_distances: tuple[float, ...] = (0.6, 0.5, 0.7, 0.8)
 
     def __post_init__(self):
         if self.max_drawers < 0:
@@ -84,7 +89,7 @@ class PickPlaceConfig:
             v = getattr(self, k)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"robot.pick_place.{k} = {v} must be finite and > 0")
-        if not self.setback or not self.lateral or self.drop < 0:
+        if not (self.setback and self.lateral and self.base_heights and self.base_distances) or self.drop < 0:
             raise ConfigError("robot.pick_place: setback and lateral need at least one value, drop >= 0")
 
 

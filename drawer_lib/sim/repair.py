@@ -18,7 +18,15 @@ Part vs static: each static collision box that a part penetrates at q = 0 by mor
 axis, left to the checks to report) loses that much plus ``clearance`` on the face the part
 presses on (the box axis most aligned with the contact normal). A box that would become thinner
 than ``min_half`` x 2 is removed. Repeated until nothing penetrates beyond ``min_depth`` (or
-``max_rounds``). A static mesh piece is never changed (it is reported by the checks). Lengths m.
+``max_rounds``). A static mesh piece is never changed (it is reported by the checks).
+
+Along the paths (:func:`path_grazes`, last): each part is opened on ``path_samples`` poses in
+(0, hi], every other part closed; a box it runs into at all, by at most ``max_graze`` (a neighbour's
+edge its corner brushes, a carcass side a drawer rubs) loses that depth plus ``clearance`` on
+the face the part presses on, as above (a static box that would become too thin is removed, a
+part's is left and reported "too thin"). Deeper is where the part really stops (the checks'
+stop) and is reported "too deep". Without this, a 0.7 mm graze with wood's friction holds a
+door against a robot's grip. Lengths m.
 """
 
 from dataclasses import dataclass, replace
@@ -30,6 +38,9 @@ from drawer_lib.bodies import Shape, TwinModel
 from drawer_lib.errors import ConfigError
 from drawer_lib.geometry.boxes import OrientedBox, separated
 from drawer_lib.sim.config import SimConfig
+from drawer_lib.sim.mjcf import STATIC as STATIC_OWNER
+
+_TOUCH = 1e-5  # m: along a path any contact is a graze (even one that touches wedges a door against its neighbour)
 
 
 @dataclass(frozen=True)
@@ -42,11 +53,15 @@ class RepairConfig:
     clearance: float = 0.001
     min_half: float = 0.001
     max_rounds: int = 4
+    path_samples: int = 32
+    max_graze: float = 0.005
 
     def __post_init__(self):
         if not 0 <= self.min_depth < self.max_depth or self.clearance < 0 or self.min_half <= 0 or self.max_rounds < 1:
             raise ConfigError("twin.repair: need 0 <= min_depth < max_depth, clearance >= 0, min_half > 0, "
                               "max_rounds >= 1")
+        if self.path_samples < 0 or not 0 <= self.max_graze <= self.max_depth:
+            raise ConfigError("twin.repair: need path_samples >= 0 and 0 <= max_graze <= max_depth")
 
 
 def static_part_penetrations(model: TwinModel, sim: SimConfig) -> list[tuple[int, str, float, np.ndarray]]:
@@ -83,6 +98,79 @@ def static_part_penetrations(model: TwinModel, sim: SimConfig) -> list[tuple[int
         if depth > best.get((k, pid), (0.0, None))[0]:
             best[(k, pid)] = (depth, n)
     return [(k, pid, dep, n) for (k, pid), (dep, n) in sorted(best.items())]
+
+
+def path_grazes(model: TwinModel, sim: SimConfig, samples: int, refine: int = 16
+                ) -> list[tuple[str, int, str, int, float, np.ndarray]]:
+    """Along each part's path, every other part closed: the collision boxes it runs into, as
+    (moving part id, its box index, what it meets: ``static`` or a part id, that body's box
+    index, the deepest penetration m over ``samples`` poses in (0, hi] and ``refine`` more
+    within a step of each pose where a pair was deepest, the contact normal there pointing from
+    what it meets into the moving part). Pairs already overlapping at q = 0 are
+    left out (the q = 0 repair's or the checks'). Every pair of collision geoms is tested."""
+    from drawer_lib.sim.checks import collide_all, geom_owners
+    from drawer_lib.sim.mjcf import build_spec, compile_spec, part_index
+
+    if samples < 1 or not model.parts:
+        return []
+    m = compile_spec(build_spec(model, sim))
+    owner, names = geom_owners(m, model)
+    mc = collide_all(m, owner)
+    n_parts = len(model.parts)
+    piece = np.full(m.ngeom, -1)
+    for g in np.flatnonzero(owner >= 0):
+        name = mujoco.mj_id2name(mc, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or ""
+        if "/col" in name:
+            piece[g] = int(name.rsplit("/col", 1)[1])
+    d = mujoco.MjData(mc)
+
+    def contacts(me: int) -> dict[tuple[int, int], tuple[float, np.ndarray]]:
+        mujoco.mj_fwdPosition(mc, d)
+        out: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
+        for c in d.contact[: d.ncon]:
+            g1, g2 = int(c.geom[0]), int(c.geom[1])
+            o1, o2 = owner[g1], owner[g2]
+            depth = -float(c.dist)
+            n = np.asarray(c.frame[:3], np.float64)  # from geom1 to geom2
+            if o1 == me and 0 <= o2 <= n_parts and o2 != me:
+                mine, other, n = g1, g2, -n
+            elif o2 == me and 0 <= o1 <= n_parts and o1 != me:
+                mine, other = g2, g1
+            else:
+                continue
+            key = (int(mine), int(other))
+            if depth > out.get(key, (0.0, None))[0]:
+                out[key] = (depth, n)
+        return out
+
+    found: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
+    for p in model.parts:
+        me = names.index(p.id)
+        qadr = part_index(mc, p.id)["qpos"]
+        d.qpos[:] = mc.qpos0
+        at_rest = set(contacts(me))
+        qs = np.linspace(0.0, p.limits[1], samples + 1)
+        mine: dict[tuple[int, int], tuple[float, np.ndarray, float]] = {}
+
+        def visit(q: float) -> None:
+            d.qpos[:] = mc.qpos0
+            d.qpos[qadr] = q
+            for key, (depth, n) in contacts(me).items():
+                if key not in at_rest and depth > mine.get(key, (0.0, None, 0.0))[0]:
+                    mine[key] = (depth, n, q)
+
+        for q in qs[1:]:
+            visit(float(q))
+        # the deepest pose lies within a step of the deepest sample: look again there, finer
+        step = qs[1] - qs[0]
+        for q_best in sorted({v[2] for v in mine.values()}):
+            for q in np.linspace(max(0.0, q_best - step), min(p.limits[1], q_best + step), refine + 2)[1:-1]:
+                visit(float(q))
+        for key, (depth, n, _) in mine.items():
+            if depth > found.get(key, (0.0, None))[0]:
+                found[key] = (depth, n)
+    return [(names[owner[g]], int(piece[g]), names[owner[o]], int(piece[o]), dep, n)
+            for (g, o), (dep, n) in sorted(found.items())]
 
 
 def _extent(box: OrientedBox, axis: np.ndarray) -> float:
@@ -166,10 +254,13 @@ def _repair_parts(model: TwinModel, cfg: RepairConfig) -> tuple[TwinModel, list[
 
 def _carve(box: OrientedBox, normal: np.ndarray, amount: float) -> OrientedBox:
     """``box`` with the face that ``normal`` (unit, out of the box toward what presses on it)
-    points through moved back by ``amount``."""
+    points through moved back far enough to recede by ``amount`` along ``normal``: amount /
+    cos(the angle between the normal and that face's axis), the cosine at least 0.5 (a corner
+    pressing in obliquely needs its face moved back further than the penetration depth)."""
     a = box.rotation.T @ normal
     i = int(np.argmax(np.abs(a)))
     s = 1.0 if a[i] > 0 else -1.0
+    amount = amount / max(abs(float(a[i])) / max(float(np.linalg.norm(a)), 1e-12), 0.5)
     half = box.half.copy()
     half[i] -= amount / 2
     return OrientedBox(box.center - s * box.rotation[:, i] * amount / 2, box.rotation, half)
@@ -177,12 +268,14 @@ def _carve(box: OrientedBox, normal: np.ndarray, amount: float) -> OrientedBox:
 
 def repair_penetrations(model: TwinModel, sim: SimConfig, cfg: RepairConfig
                         ) -> tuple[TwinModel, list[dict], list[tuple[int, Shape | None]], dict[str, dict[int, Shape]]]:
-    """The twin with its parts' overlapping boxes trimmed apart and its static collision carved
-    free of the parts at q = 0 (module doc). Returns (the model; what was done, part vs part
+    """The twin with its parts' overlapping boxes trimmed apart, its static collision carved
+    free of the parts at q = 0, and what each part grazes along its path carved back (module
+    doc). Returns (the model; what was done, part vs part
     ``{"part", "piece", "other", "other_piece", "depth_m", "action": "carved" | "too deep" |
     "too thin"}`` then part vs static ``{"part", "static_piece", "depth_m", "action": "carved" |
     "removed" | "too deep" | "not a box"}`` (``static_piece``: the index in the input's
-    ``static_collision``); per kept piece of the output's static collision (index in the input,
+    ``static_collision``), then the grazes along the paths, the same records with
+    ``"along_path": True``; per kept piece of the output's static collision (index in the input,
     its new shape when carved else None); per part the collision pieces trimmed, {index: new
     shape})."""
     static = list(model.static_collision)
@@ -219,6 +312,50 @@ def repair_penetrations(model: TwinModel, sim: SimConfig, cfg: RepairConfig
                     carved.add(k)
                     rec["action"] = "carved"
             log.append(rec)
+    # along the paths: what a part grazes as it opens (a neighbour's edge, a carcass side), carved back
+    shapes = {p.id: list(p.collision) for p in model.parts}
+    skip_path: set[tuple] = set()
+    for _ in range(cfg.max_rounds if cfg.path_samples else 0):
+        idx = [k for k in range(len(static)) if alive[k]]
+        current = replace(model, static_collision=[static[k] for k in idx],
+                          parts=[replace(p, collision=shapes[p.id]) for p in model.parts])
+        hits = [h for h in path_grazes(current, sim, cfg.path_samples) if h[4] > _TOUCH
+                and (h[0], h[2], idx[h[3]] if h[2] == STATIC_OWNER else h[3]) not in skip_path]
+        if not hits:
+            break
+        for pid, piece, other, k, dep, n in hits:
+            if other == STATIC_OWNER:
+                k = idx[k]
+                rec = {"part": pid, "piece": piece, "static_piece": k, "depth_m": round(dep, 5), "along_path": True}
+                shape = static[k] if alive[k] else None
+            else:
+                rec = {"part": pid, "piece": piece, "other": other, "other_piece": k, "depth_m": round(dep, 5),
+                       "along_path": True}
+                shape = shapes[other][k]
+            if shape is None:
+                continue
+            if dep > cfg.max_graze or shape.kind != "box":
+                rec["action"] = "too deep" if dep > cfg.max_graze else "not a box"
+                skip_path.add((pid, other, k))
+                log.append(rec)
+                continue
+            box = _carve(shape.box, n, dep + cfg.clearance)
+            if box.half.min() < cfg.min_half:
+                if other == STATIC_OWNER:
+                    alive[k] = False
+                    rec["action"] = "removed"
+                else:
+                    rec["action"] = "too thin"
+                    skip_path.add((pid, other, k))
+            elif other == STATIC_OWNER:
+                static[k] = Shape("box", box=box)
+                carved.add(k)
+                rec["action"] = "carved"
+            else:
+                shapes[other][k] = part_changed.setdefault(other, {})[k] = Shape("box", box=box)
+                rec["action"] = "carved"
+            log.append(rec)
+    model = replace(model, parts=[replace(p, collision=shapes[p.id]) for p in model.parts])
     kept = [k for k in range(len(static)) if alive[k]]
     out = replace(model, static_collision=[static[k] for k in kept])
     return out.validate(), log, [(k, static[k] if k in carved else None) for k in kept], part_changed

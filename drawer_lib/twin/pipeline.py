@@ -105,9 +105,10 @@ def _box_json(s: Shape) -> dict:
 
 def _overlap_with(r: dict) -> str:
     """What a repair record (:func:`~drawer_lib.sim.repair.repair_penetrations`) overlapped."""
+    where = "opening, " if r.get("along_path") else ""
     if "other" in r:
-        return f"piece {r['piece']} into {r['other']!r} piece {r['other_piece']}"
-    return f"static piece {r['static_piece']}"
+        return f"{where}piece {r['piece']} into {r['other']!r} piece {r['other_piece']}"
+    return f"{where}into static piece {r['static_piece']}"
 
 
 def _tile(img: np.ndarray, width: int) -> np.ndarray:

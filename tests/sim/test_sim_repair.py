@@ -9,7 +9,8 @@ import sim_fixtures as F
 from drawer_lib.bodies import PartBody, TwinModel, box_shape
 from drawer_lib.errors import ConfigError
 from drawer_lib.sim.config import SimConfig
-from drawer_lib.sim.repair import RepairConfig, part_part_overlaps, repair_penetrations, static_part_penetrations
+from drawer_lib.sim.repair import (RepairConfig, part_part_overlaps, path_grazes, repair_penetrations,
+                                   static_part_penetrations)
 
 SIM = SimConfig()
 
@@ -34,7 +35,7 @@ def test_a_rotated_box_pressing_into_a_part_is_carved_on_the_face_it_presses_wit
     (hit,) = [h for h in static_part_penetrations(model, SIM) if h[0] == 1]
     assert hit[2] == pytest.approx(0.006, abs=1e-6)
     np.testing.assert_allclose(hit[3], -R[:, 1], atol=1e-6)  # from the side into the panel: -v of the box
-    out, log, kept, _ = repair_penetrations(model, SIM, RepairConfig())
+    out, log, kept, _ = repair_penetrations(model, SIM, RepairConfig(path_samples=0))
     assert [(r["static_piece"], r["action"]) for r in log] == [(1, "carved")]
     new = out.static_collision[1].box
     np.testing.assert_allclose(new.half, [0.2, 0.02 - 0.0035, 0.2], atol=1e-9)
@@ -47,7 +48,7 @@ def test_a_thin_skin_is_removed_a_deep_overlap_and_a_mesh_are_left_to_the_checks
     skin = box_shape([0.0, 0.0095, 0.5], [0.2, 0.001, 0.2])  # 2 mm thick, 1.5 mm into the panel
     deep = box_shape([0.0, 0.03 - 0.04 + 0.01, 0.9], [0.1, 0.03, 0.2])  # 4 cm into it, at its top
     model = TwinModel([], [F.floor(), skin, deep], [panel_part()], [])
-    out, log, kept, _ = repair_penetrations(model, SIM, RepairConfig())
+    out, log, kept, _ = repair_penetrations(model, SIM, RepairConfig(path_samples=0))
     actions = {r["static_piece"]: r["action"] for r in log}
     assert actions == {1: "removed", 2: "too deep"}
     assert [k for k, _ in kept] == [0, 2] and len(out.static_collision) == 2
@@ -93,3 +94,39 @@ def test_a_front_detected_twice_is_left_and_reported():
     assert [(r["part"], r["other"], r["action"]) for r in log] == [("drawer_0", "drawer_1", "too deep")]
     assert log[0]["depth_m"] == pytest.approx(0.3)  # b must move 30 cm along x or z to clear a
     assert changed == {} and out.parts[0].collision[0].box.half.tolist() == [0.25, 0.01, 0.2]
+
+
+def _door_beside(edge_x: float) -> TwinModel:
+    """The door cabinet of tests/sim (door hinged at x = 0.95 on its back face, opening to -y by
+    90 deg) and a neighbouring front to its left, in the same plane, ending at ``edge_x``: as
+    the door swings, its outer hinge-side corner sweeps to x = 0.95 - 0.018 = 0.932 at 90 deg."""
+    walls, door = F.door_cabinet()
+    front = F.slab((0.5, -F.GAP - F.T, 0.1), (edge_x, -F.GAP, 0.6))
+    drawer = PartBody("drawer_5", "prismatic", np.array([0.7, -F.GAP, 0.35]), np.array([0.0, -1.0, 0.0]), (0.0, 0.3),
+                      [], [front], 600.0)
+    return TwinModel([], [F.floor(), *walls], [door, drawer], [])
+
+
+def test_a_neighbour_the_door_brushes_as_it_opens_is_carved_back_and_a_real_stop_is_not():
+    """Neighbour edge at 0.934: the door's corner brushes 2 mm into it at the end of its swing;
+    that edge is carved back by 2 + 1 mm and the door opens freely (its stop is its limit). At
+    0.945 the corner would go 13 mm in: too deep to be a graze, nothing carved, and the door
+    stops where it meets the neighbour."""
+    from drawer_lib.sim.checks import check_twin
+    from drawer_lib.sim.mjcf import build_spec, compile_spec
+
+    model = _door_beside(0.934)
+    ((pid, _, other, k, dep, _),) = path_grazes(model, SIM, 32)
+    assert (pid, other, k) == ("door_0", "drawer_5", 0) and dep == pytest.approx(0.002, abs=2e-4)
+    out, log, _, changed = repair_penetrations(model, SIM, RepairConfig())
+    (r,) = log
+    assert r["along_path"] and r["action"] == "carved" and list(changed) == ["drawer_5"]
+    assert out.parts[1].collision[0].box.center[0] + out.parts[1].collision[0].box.half[0] == pytest.approx(
+        0.934 - r["depth_m"] - 0.001, abs=1e-4)
+    assert path_grazes(out, SIM, 32) == []
+    rep = check_twin(compile_spec(build_spec(out, SIM)), out, SIM)
+    assert rep["parts"]["door_0"]["stopped_by"] is None
+    deep = _door_beside(0.945)
+    out2, log2, _, changed2 = repair_penetrations(deep, SIM, RepairConfig())
+    assert [(r["other"], r["action"]) for r in log2] == [("drawer_5", "too deep")] and changed2 == {}
+    assert log2[0]["depth_m"] == pytest.approx(0.013, abs=5e-4)
