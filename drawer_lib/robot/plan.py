@@ -74,8 +74,8 @@ class PickPlaceConfig:
     lift: float = 0.1
     drop: float = 0.01
     settle: float = 0.5
-    base_heights: tuple[float, ...] = (0.55, 0.7, 0.4, 0.25)
-    base_distances: tuple[float, ...] = (0.6, 0.5, 0.7, 0.8)
+    base_heights: tuple[float, ...] = (0.25, 0.15, 0.35, 0.45)
+    base_distances: tuple[float, ...] = (0.5, 0.4, 0.6, 0.7)
 
     def __post_init__(self):
         if self.max_drawers < 0:

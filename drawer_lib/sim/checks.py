@@ -309,7 +309,8 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     opens it to 90 % of its stop within 3 s and the limit holds (<= 2° / 5 mm); at q = 0 no
     part penetrates the static scene by > 2 mm (nor another part, when parts collide:
     ``contact.part_part``; else that overlap is only reported), nor the static scene along its
-    path; rigid objects move < 1 cm in 2 s at rest; no NaN and no MuJoCo warning anywhere.
+    path; rigid objects move < 1 cm in 2 s at rest and parts open by < 5 mm (a drawer whose
+    axis tilts down must not roll open); no NaN and no MuJoCo warning anywhere.
     Simulation speed (steps/s, real-time factor) of the whole scene at rest is measured.
 
     Returns: a dict of flat aggregates (``n_parts``, ``n_rigid``, ``drive_time_to_open_s_max``,
@@ -378,6 +379,21 @@ def check_twin(model: mujoco.MjModel | str | Path, twin: TwinModel, cfg: SimConf
     problem, nonfinite = health(m, d)
     if problem:
         fails.add("scene", "rest", f"the scene at rest: the simulation is not healthy ({problem})", nonfinite)
+    for p in twin.parts:  # a passive part stays shut (a reconstructed axis that tilts down must not let it roll open)
+        if p.id not in ids or p.id not in report["parts"]:
+            continue
+        ix = ids[p.id]
+        q = float(d.qpos[ix["qpos"]])
+        moved = abs(q) * (0.5 if p.kind == "revolute" else 1.0)
+        rec = report["parts"][p.id]
+        rec["rest_drift_m"] = moved
+        if not moved < c.rest_part_drift:
+            tilt = math.degrees(math.asin(min(1.0, abs(float(p.unit_axis[2])))))
+            why = (f"its axis tilts {tilt:.1f}° from level and its friction "
+                   f"{float(m.dof_frictionloss[ix['dof']]):.3g} N does not hold it" if p.kind == "prismatic"
+                   else "its weight or a neighbour moves it")
+            fails.add(p.id, "rest", f"part {p.id!r}: as the file loads it moved to q = {q:.3g} {_UNIT[p.kind]} in "
+                      f"{c.rest_time:.3g} s at rest (max {c.rest_part_drift * 1000:.1f} mm): {why}")
     for r, dr, b in zip(rig, drift, bodies):
         report["rigid"][r.id] = {"drift_m": float(dr), "mass_kg": float(m.body_mass[b])}
         if not dr < c.rest_drift:

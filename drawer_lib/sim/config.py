@@ -27,7 +27,9 @@ class JointConfig:
     acceleration, and the servo is never stiffer than the implicit integrator resolves
     (drive_tau >> timestep); the passive damping and friction slow it by
     (damping + frictionloss / speed) / (kv + damping) (~5 % for a 5 kg drawer or a 0.35 kg·m^2
-    door). ``effort``: the drive's force limit (MJCF ``forcerange``, URDF ``<limit effort>``)."""
+    door). ``effort``: the drive's force limit (MJCF ``forcerange``, URDF ``<limit effort>``).
+    ``friction_mu``: runner friction as a fraction of the part's weight (:meth:`friction`), so a
+    heavy drawer whose reconstructed axis tilts down by less than atan(mu) stays shut."""
 
     damping: float
     armature: float
@@ -35,9 +37,15 @@ class JointConfig:
     speed: float
     drive_tau: float = 0.02
     effort: float = 50.0
+    friction_mu: float = 0.0
+
+    def friction(self, mass: float, gravity: float) -> float:
+        """The joint's dry friction force (N or N·m) for a part of ``mass`` kg: ``frictionloss``,
+        or ``friction_mu`` x its weight when that is more (drawer runners carry the drawer)."""
+        return max(self.frictionloss, self.friction_mu * mass * gravity)
 
     def __post_init__(self):
-        for k in ("damping", "armature", "frictionloss"):
+        for k in ("damping", "armature", "frictionloss", "friction_mu"):
             v = getattr(self, k)
             _check(math.isfinite(v) and v >= 0, f"joint.{k} = {v} must be finite and >= 0")
         _check(math.isfinite(self.speed) and self.speed > 0, f"joint.speed = {self.speed} must be > 0")
@@ -49,7 +57,8 @@ class JointConfig:
 # door open in well under a second (terminal speed 10 rad/s) yet stops a released door within
 # a fraction of a turn; dry friction 0.05 N·m holds a door at rest against small disturbances
 # (a real hinge has ~0.02-0.2 N·m). Drawer slides: ball-bearing runners roll with ~1 N dry
-# friction (μ ~ 0.02-0.05 of a loaded drawer's weight) and ~10 N·s/m of viscous loss (a 20 N pull
+# friction (μ ~ 0.02-0.05 of a loaded drawer's weight: friction_mu 0.05, at least 1 N, which holds a
+# drawer shut whose inferred axis tilts down by up to 2.9°) and ~10 N·s/m of viscous loss (a 20 N pull
 # gives 2 m/s terminal speed, and a drawer pushed at 0.5 m/s coasts ~ m/c = 0.3 s).
 # DRAWER's Isaac drives use damping 1e10 as an ideal velocity source; here the ideal velocity
 # source is the servo (drive_tau) and the joint keeps realistic passive damping, so a person's
@@ -61,7 +70,8 @@ def _revolute_default() -> "JointConfig":
 
 
 def _prismatic_default() -> "JointConfig":
-    return JointConfig(damping=10.0, armature=0.05, frictionloss=1.0, speed=0.5, drive_tau=0.02, effort=150.0)
+    return JointConfig(damping=10.0, armature=0.05, frictionloss=1.0, speed=0.5, drive_tau=0.02, effort=150.0,
+                       friction_mu=0.05)
 
 
 @dataclass(frozen=True)
@@ -116,7 +126,8 @@ class CheckConfig:
     ``pull_overshoot_rad`` / ``pull_overshoot_m``. Penetration: at q = 0 a part intersects the
     static scene or another part by <= ``penetration``; along its path (``path_samples`` poses in
     (0, hi]) the static scene by <= ``path_penetration``. Rest: rigid objects move <
-    ``rest_drift`` in ``rest_time``. Stop: with every other part closed, a part opens until it
+    ``rest_drift`` in ``rest_time``, and parts (the model as it loads) open by less than
+    ``rest_part_drift`` (m; rad x 0.5 m for a hinge). Stop: with every other part closed, a part opens until it
     first penetrates what it collides with (other parts with ``contact.part_part``, the static
     scene with ``contact.part_static``) by more than ``stop_depth``, found on ``stop_samples``
     poses in (0, hi] refined by bisection; the drive and pull tests then need their fractions of
@@ -137,6 +148,7 @@ class CheckConfig:
     path_samples: int = 8
     rest_time: float = 2.0
     rest_drift: float = 0.01
+    rest_part_drift: float = 0.005
     stop_depth: float = 0.0005
     stop_samples: int = 64
     min_travel: float = 0.5
@@ -147,7 +159,8 @@ class CheckConfig:
         _check(self.path_samples >= 1 and self.stop_samples >= 1, "checks.path_samples and stop_samples must be >= 1")
         _check(0.0 <= self.min_travel <= 1.0, f"checks.min_travel = {self.min_travel} must be in [0, 1]")
         for k in ("drive_overshoot_rad", "drive_overshoot_m", "pull_force", "pull_torque", "pull_overshoot_rad",
-                  "pull_overshoot_m", "penetration", "path_penetration", "rest_drift", "stop_depth"):
+                  "pull_overshoot_m", "penetration", "path_penetration", "rest_drift", "stop_depth",
+                  "rest_part_drift"):
             _check(getattr(self, k) >= 0, f"checks.{k} must be >= 0")
 
 

@@ -101,7 +101,7 @@ def urdf_tree(model: TwinModel, cfg: SimConfig | None = None) -> tuple[ET.Elemen
         ET.SubElement(j, "axis", xyz=_fmt(p.unit_axis))
         ET.SubElement(j, "limit", lower=_fmt(p.limits[0]), upper=_fmt(p.limits[1]), effort=_fmt(jc.effort),
                       velocity=_fmt(jc.speed))
-        ET.SubElement(j, "dynamics", damping=_fmt(jc.damping), friction=_fmt(jc.frictionloss))
+        ET.SubElement(j, "dynamics", damping=_fmt(jc.damping), friction=_fmt(jc.friction(props.mass, cfg.gravity)))
 
     for r in model.rigid:
         props = r.mass_properties()

@@ -329,3 +329,32 @@ def test_a_door_its_neighbour_stops_before_half_its_range_is_blocked():
     off = SimConfig(contact=ContactConfig(part_part=False))
     r = check_twin(compile_spec(build_spec(twin, off)), twin, off)
     assert r["parts"]["door_0"]["stopped_by"] is None and r["n_parts_stopped"] == 0
+
+
+@pytest.mark.parametrize("tilt_deg, holds", [(2.0, True), (6.0, False)])
+def test_a_drawer_whose_axis_tilts_down_stays_shut_within_its_runner_friction(tilt_deg, holds):
+    """The reconstructed axis of a drawer tilts down by ``tilt_deg``: its weight pulls it open
+    with m g sin(tilt). The runners' friction (5 % of its weight, :meth:`JointConfig.friction`)
+    holds it up to atan(0.05) = 2.9 deg; beyond, the rest check names the part and the tilt.
+    With the old constant 1 N it rolls open at 2 deg as well."""
+    walls, drawer = F.drawer_cabinet()
+    t = math.radians(tilt_deg)
+    drawer = dataclasses.replace(drawer, axis_direction=np.array([0.0, -math.cos(t), -math.sin(t)]))
+    twin = TwinModel(static_collision=[F.floor()], parts=[drawer])  # no carcass for its tilted path to scrape
+    cfg = SimConfig()
+    m = compile_spec(build_spec(twin, cfg))
+    mass = drawer.mass_properties().mass
+    assert m.dof_frictionloss[0] == pytest.approx(0.05 * mass * 9.81)
+    if holds:
+        r = check_twin(m, twin, cfg)
+        assert r["parts"]["drawer_0"]["rest_drift_m"] < 5e-4  # MuJoCo's soft friction creeps ~0.07 mm/s
+        old = SimConfig(prismatic=dataclasses.replace(SimConfig().prismatic, friction_mu=0.0))
+        m_old = compile_spec(build_spec(twin, old))
+        d = mujoco.MjData(m_old)
+        mujoco.mj_step(m_old, d, nstep=1000)
+        assert d.qpos[0] > 0.005  # 1 N of friction does not hold it
+    else:
+        with pytest.raises(TwinCheckError, match=f"part 'drawer_0': as the file loads it moved .* its axis tilts "
+                           f"{tilt_deg:.1f}° from level") as e:
+            check_twin(m, twin, cfg)
+        assert ("drawer_0", "rest") in _failures(e)
