@@ -40,7 +40,7 @@ import numpy as np
 from jaxtyping import Float
 
 from drawer_lib.io.parts import Part
-from drawer_lib.robot.panda import FINGER_KP, FINGER_MAX
+from drawer_lib.robot.panda import BIT_ROBOT, FINGER_KP, FINGER_MAX
 from drawer_lib.robot.plan import PickPlaceConfig, RobotConfig, Tick, smoothstep
 from drawer_lib.sim.mjcf import BIT_PART, BIT_RIGID, BIT_STATIC, GROUP_COLLISION, part_index
 
@@ -165,8 +165,6 @@ def place_spot(m: mujoco.MjModel, d: mujoco.MjData, part: Part, q_open: float, c
 def add_object(spec: mujoco.MjSpec, pos: np.ndarray, cfg: PickPlaceConfig) -> None:
     """The block as a free body :data:`OBJECT` at ``pos`` (its centre, m) in ``spec``, colliding
     with the static scene, the parts, rigid objects and the robot (in place)."""
-    from drawer_lib.robot.panda import BIT_ROBOT
-
     body = spec.worldbody.add_body(name=OBJECT, pos=[float(x) for x in pos])
     body.add_freejoint(name=OBJECT)
     half = [s / 2 for s in cfg.size]

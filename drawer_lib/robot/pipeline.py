@@ -117,6 +117,15 @@ FEATURES_BASE = {
 }
 
 
+def _frames(rec: Recording, sl: slice, camera: bool) -> dict[str, np.ndarray]:
+    """The dataset features (:data:`FEATURES_BASE`, and the camera) of ``rec``'s frames ``sl``."""
+    fr = {"observation.state": rec.state[sl], "action": rec.action[sl], "observation.ee_pose": rec.tcp[sl],
+          "observation.part_q": rec.part_q[sl]}
+    if camera:
+        fr["observation.images.front"] = rec.images[sl]
+    return fr
+
+
 def _episodes(rec: Recording, part: Part, camera: bool) -> list[Episode]:
     """The recording as two episodes: open (approach .. hold) and close (close .. retreat)."""
     name = str(part.extra.get("family", part.kind))
@@ -126,11 +135,7 @@ def _episodes(rec: Recording, part: Part, camera: bool) -> list[Episode]:
                                                                         slice(split, len(rec.time)))):
         if sl.stop - sl.start < 1:
             continue
-        fr = {"observation.state": rec.state[sl], "action": rec.action[sl], "observation.ee_pose": rec.tcp[sl],
-              "observation.part_q": rec.part_q[sl]}
-        if camera:
-            fr["observation.images.front"] = rec.images[sl]
-        out.append(Episode(task, fr))
+        out.append(Episode(task, _frames(rec, sl, camera)))
     return out
 
 
@@ -340,11 +345,8 @@ def pick_and_place(cfg: RobotConfig, p: Part, q_open: float, twin_spec, ik: Pand
     placed = bool(rec.extra.get("placed", False))
     out["twin"] = {"placed": placed, "reason": _pick_reason(rec, placed), "object_end": rec.extra.get("object_end"),
                    "problem": rec.problem, "sim_steps": rec.sim_steps}
-    fr = {"observation.state": rec.state, "action": rec.action, "observation.ee_pose": rec.tcp,
-          "observation.part_q": rec.part_q}
-    if cam[0] > 0:
-        fr["observation.images.front"] = rec.images
-    episode = Episode(f"pick up the block from the counter and place it in the drawer {p.id}", fr)
+    episode = Episode(f"pick up the block from the counter and place it in the drawer {p.id}",
+                      _frames(rec, slice(None), cam[0] > 0))
     if gt_spec is not None:
         out["transfer"] = _pick_transfer(cfg, p, site, gp, gt_spec, base, ticks, actions, option)
     return out, [episode]

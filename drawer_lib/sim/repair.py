@@ -64,39 +64,69 @@ class RepairConfig:
             raise ConfigError("twin.repair: need path_samples >= 0 and 0 <= max_graze <= max_depth")
 
 
+class _ContactScan:
+    """The twin ``model`` compiled so that every collision geom collides with every other
+    (:func:`~drawer_lib.sim.checks.collide_all`), to read which boxes a part touches at a pose:
+    ``owner`` per geom (0 static, 1.. the parts, then rigid objects; -1 visual), ``names`` of the
+    owners, ``piece`` per geom (its index ``k`` in its body's collision list, from ``<owner>/col<k>``)."""
+
+    def __init__(self, model: TwinModel, sim: SimConfig):
+        from drawer_lib.sim.checks import collide_all, geom_owners
+        from drawer_lib.sim.mjcf import build_spec, compile_spec
+
+        m = compile_spec(build_spec(model, sim))
+        self.owner, self.names = geom_owners(m, model)
+        self.mc = collide_all(m, self.owner)
+        self.d = mujoco.MjData(self.mc)
+        self.n_parts = len(model.parts)
+        self.piece = np.full(m.ngeom, -1)
+        for g in np.flatnonzero(self.owner >= 0):
+            name = mujoco.mj_id2name(self.mc, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or ""
+            if "/col" in name:
+                self.piece[g] = int(name.rsplit("/col", 1)[1])
+
+    def contacts(self, me: int, qadr: int = -1, q: float = 0.0) -> dict[tuple[int, int], tuple[float, np.ndarray]]:
+        """With every joint at rest but qpos address ``qadr`` at ``q``: for owner ``me`` (a
+        part), {(its geom, the other geom): (deepest penetration m > 0, unit normal from the other
+        geom into it)} over the static scene and the other parts."""
+        d, mc, owner = self.d, self.mc, self.owner
+        d.qpos[:] = mc.qpos0
+        if qadr >= 0:
+            d.qpos[qadr] = q
+        mujoco.mj_fwdPosition(mc, d)
+        out: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
+        for c in d.contact[: d.ncon]:
+            g1, g2 = int(c.geom[0]), int(c.geom[1])
+            o1, o2 = owner[g1], owner[g2]
+            depth = -float(c.dist)
+            if depth <= 0:
+                continue
+            n = np.asarray(c.frame[:3], np.float64)  # from geom1 to geom2
+            if o1 == me and 0 <= o2 <= self.n_parts and o2 != me:
+                mine, other, n = g1, g2, -n
+            elif o2 == me and 0 <= o1 <= self.n_parts and o1 != me:
+                mine, other = g2, g1
+            else:
+                continue
+            key = (int(mine), int(other))
+            if depth > out.get(key, (0.0, None))[0]:
+                out[key] = (depth, n)
+        return out
+
+
 def static_part_penetrations(model: TwinModel, sim: SimConfig) -> list[tuple[int, str, float, np.ndarray]]:
     """At q = 0, every (static collision piece k, part id, depth m > 0, unit normal pointing from
     the static piece into the part) whose collision geoms overlap, deepest per pair, every pair
     of collision geoms tested (the contacts of the model as built do not matter)."""
-    from drawer_lib.sim.checks import collide_all, geom_owners
-    from drawer_lib.sim.mjcf import build_spec, compile_spec
-
-    m = compile_spec(build_spec(model, sim))
-    owner, names = geom_owners(m, model)  # collision geoms only: 0 static, 1.. the parts
-    mc = collide_all(m, owner)
-    d = mujoco.MjData(mc)
-    mujoco.mj_fwdPosition(mc, d)
-    n_parts = len(model.parts)
+    scan = _ContactScan(model, sim)
     best: dict[tuple[int, str], tuple[float, np.ndarray]] = {}
-    for c in d.contact[: d.ncon]:
-        g1, g2 = int(c.geom[0]), int(c.geom[1])
-        o1, o2 = owner[g1], owner[g2]
-        depth = -float(c.dist)
-        if depth <= 0:
-            continue
-        n = np.asarray(c.frame[:3], np.float64)  # from geom1 to geom2
-        if o1 == 0 and 1 <= o2 <= n_parts:
-            gs, pid = g1, names[o2]
-        elif o2 == 0 and 1 <= o1 <= n_parts:
-            gs, pid, n = g2, names[o1], -n
-        else:
-            continue
-        name = mujoco.mj_id2name(mc, mujoco.mjtObj.mjOBJ_GEOM, gs) or ""
-        if not name.startswith("static/col"):
-            continue
-        k = int(name.removeprefix("static/col"))
-        if depth > best.get((k, pid), (0.0, None))[0]:
-            best[(k, pid)] = (depth, n)
+    for me in range(1, scan.n_parts + 1):
+        for (_, other), (depth, n) in scan.contacts(me).items():
+            if scan.owner[other] != 0 or scan.piece[other] < 0:
+                continue
+            key = (int(scan.piece[other]), scan.names[me])
+            if depth > best.get(key, (0.0, None))[0]:
+                best[key] = (depth, n)
     return [(k, pid, dep, n) for (k, pid), (dep, n) in sorted(best.items())]
 
 
@@ -108,54 +138,21 @@ def path_grazes(model: TwinModel, sim: SimConfig, samples: int, refine: int = 16
     within a step of each pose where a pair was deepest, the contact normal there pointing from
     what it meets into the moving part). Pairs already overlapping at q = 0 are
     left out (the q = 0 repair's or the checks'). Every pair of collision geoms is tested."""
-    from drawer_lib.sim.checks import collide_all, geom_owners
-    from drawer_lib.sim.mjcf import build_spec, compile_spec, part_index
+    from drawer_lib.sim.mjcf import part_index
 
     if samples < 1 or not model.parts:
         return []
-    m = compile_spec(build_spec(model, sim))
-    owner, names = geom_owners(m, model)
-    mc = collide_all(m, owner)
-    n_parts = len(model.parts)
-    piece = np.full(m.ngeom, -1)
-    for g in np.flatnonzero(owner >= 0):
-        name = mujoco.mj_id2name(mc, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or ""
-        if "/col" in name:
-            piece[g] = int(name.rsplit("/col", 1)[1])
-    d = mujoco.MjData(mc)
-
-    def contacts(me: int) -> dict[tuple[int, int], tuple[float, np.ndarray]]:
-        mujoco.mj_fwdPosition(mc, d)
-        out: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
-        for c in d.contact[: d.ncon]:
-            g1, g2 = int(c.geom[0]), int(c.geom[1])
-            o1, o2 = owner[g1], owner[g2]
-            depth = -float(c.dist)
-            n = np.asarray(c.frame[:3], np.float64)  # from geom1 to geom2
-            if o1 == me and 0 <= o2 <= n_parts and o2 != me:
-                mine, other, n = g1, g2, -n
-            elif o2 == me and 0 <= o1 <= n_parts and o1 != me:
-                mine, other = g2, g1
-            else:
-                continue
-            key = (int(mine), int(other))
-            if depth > out.get(key, (0.0, None))[0]:
-                out[key] = (depth, n)
-        return out
-
+    scan = _ContactScan(model, sim)
     found: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
     for p in model.parts:
-        me = names.index(p.id)
-        qadr = part_index(mc, p.id)["qpos"]
-        d.qpos[:] = mc.qpos0
-        at_rest = set(contacts(me))
+        me = scan.names.index(p.id)
+        qadr = part_index(scan.mc, p.id)["qpos"]
+        at_rest = set(scan.contacts(me))
         qs = np.linspace(0.0, p.limits[1], samples + 1)
         mine: dict[tuple[int, int], tuple[float, np.ndarray, float]] = {}
 
         def visit(q: float) -> None:
-            d.qpos[:] = mc.qpos0
-            d.qpos[qadr] = q
-            for key, (depth, n) in contacts(me).items():
+            for key, (depth, n) in scan.contacts(me, qadr, q).items():
                 if key not in at_rest and depth > mine.get(key, (0.0, None, 0.0))[0]:
                     mine[key] = (depth, n, q)
 
@@ -169,8 +166,8 @@ def path_grazes(model: TwinModel, sim: SimConfig, samples: int, refine: int = 16
         for key, (depth, n, _) in mine.items():
             if depth > found.get(key, (0.0, None))[0]:
                 found[key] = (depth, n)
-    return [(names[owner[g]], int(piece[g]), names[owner[o]], int(piece[o]), dep, n)
-            for (g, o), (dep, n) in sorted(found.items())]
+    o, pc, nm = scan.owner, scan.piece, scan.names
+    return [(nm[o[g]], int(pc[g]), nm[o[h]], int(pc[h]), dep, n) for (g, h), (dep, n) in sorted(found.items())]
 
 
 def _extent(box: OrientedBox, axis: np.ndarray) -> float:
