@@ -20,9 +20,15 @@ class FrontsConfig:
     (within 0.75 x the smallest sliding step) whose facing edges lie within ``shared_edge_gap``
     (0 = off), overlap over ``shared_edge_overlap`` of the shorter side and whose axes agree
     within ``shared_edge_angle_deg`` share one edge. Fronts smaller than ``min_size`` or larger
-    than ``max_size`` (either side) are not parts."""
+    than ``max_size`` (either side) are not parts. The gravity prior: a front whose fitted plane
+    tilts less than ``plumb_deg`` from vertical is made plumb (its normal levelled; kitchen
+    fronts hang plumb in a gravity-aligned world frame, and a plane fitted to a noisy mesh
+    tilts by a degree or more, which would roll a drawer open on its own or swing a door on
+    its leaning hinge); 0 turns it off; at most ``vertical_deg``. The prior sets the part's
+    front and joint only: the evidence for its type is read off the fitted plane."""
 
     vertical_deg: float = 25.0
+    plumb_deg: float = 15.0
     min_size: float = 0.08
     max_size: float = 2.6
     inlier_m: float = 0.01
@@ -44,6 +50,9 @@ class FrontsConfig:
             raise ConfigError(f"articulate.fronts.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
         if not 0 < self.min_size < self.max_size:
             raise ConfigError("articulate.fronts: need 0 < min_size < max_size")
+        if not 0 <= self.plumb_deg <= self.vertical_deg:
+            raise ConfigError(f"articulate.fronts.plumb_deg = {self.plumb_deg} must be in [0, vertical_deg = "
+                              f"{self.vertical_deg}]")
 
 
 @dataclass(frozen=True)

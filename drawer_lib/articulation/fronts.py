@@ -78,6 +78,31 @@ def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: Float[np.ndarray
     return Front(tuple(center.tolist()), tuple(n.tolist()), tuple(u.tolist()), (float(size[0]), float(size[1])))
 
 
+def plumb(front: Front, max_deg: float) -> tuple[Front, float]:
+    """The gravity prior on a front's joint: a front whose normal rises or falls less than
+    ``max_deg`` from the horizontal plane (world +z up) is turned about its centre and its
+    horizontal axis u to hang plumb (normal levelled, v vertical; centre and size kept), so
+    that a drawer slides level and a door's hinge stands vertical. Returns (front, its tilt
+    before, degrees); a steeper front, or ``max_deg`` <= 0, is returned as it is.
+
+    >>> f = Front((0.0, 0.0, 0.5), (0.0, -np.cos(0.05), np.sin(0.05)), (1.0, 0.0, 0.0), (0.4, 0.2))
+    >>> g, tilt = plumb(f, 10.0)
+    >>> (np.asarray(g.normal) + 0.0).round(6).tolist(), (g.v + 0.0).round(6).tolist(), round(tilt, 3)
+    ([0.0, -1.0, 0.0], [0.0, 0.0, 1.0], 2.865)
+    """
+    n = np.asarray(front.normal, float)
+    n = n / np.linalg.norm(n)
+    tilt = float(np.degrees(np.arcsin(np.clip(abs(n[2]), 0.0, 1.0))))
+    if max_deg <= 0 or tilt >= max_deg:
+        return front, tilt
+    h = np.array([n[0], n[1], 0.0])
+    h = h / np.linalg.norm(h) + 0.0  # no -0.0
+    u, _ = plane_axes(h)
+    if u @ np.asarray(front.u) < 0:
+        u = -u
+    return Front(front.center, tuple(h.tolist()), tuple(u.tolist()), front.size), tilt
+
+
 def mask_uv(front: Front, mask: np.ndarray, cam: Camera, border_px: int, min_pixels: int
             ) -> tuple[np.ndarray, np.ndarray] | None:
     """((u, v) [N, 2] of the pixels of ``mask`` [H, W] cast from ``cam`` onto the front plane,

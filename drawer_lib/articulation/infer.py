@@ -18,6 +18,7 @@ from drawer_lib.articulation.fronts import (
     abutting_edges,
     coplanar_iou,
     fit_front,
+    plumb,
     refine_with_masks,
     sample_points,
     share_edges,
@@ -202,8 +203,10 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         side = (slide_side(fr, mesh_pts, h, cfg.joints, rail_run(fr, mesh_pts, pt_normal))
                 if dec.family == "sliding" and pair is None else None)
-        parts.append(make_part(pid, dec, fr, cfg.joints, extra, carcass if dec.family == "drawer" else None, pair,
-                               side))
+        joint_front, tilt = plumb(fr, cfg.fronts.plumb_deg)  # the evidence above read the fitted plane
+        row |= {"tilt_deg": round(tilt, 3), "plumbed": joint_front is not fr}
+        parts.append(make_part(pid, dec, joint_front, cfg.joints, extra, carcass if dec.family == "drawer" else None,
+                               pair, side))
         row["part"] = pid
     return parts, report
 

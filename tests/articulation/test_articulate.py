@@ -358,3 +358,35 @@ def test_carcass_depth_ignores_fronts_above_that_face_the_same_way():
     assert carcass_depth(front, np.asarray(pts), nrm, JointsConfig()) == pytest.approx(0.6, abs=0.01)
     high = Front((0.25, Y, 1.8), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.7))  # level with the wall cabinet
     assert carcass_depth(high, np.asarray(pts), nrm, JointsConfig()) == pytest.approx(0.25, abs=0.01)
+
+
+def tilted_run(handle: str, deg: float, cfg=ArticulateConfig()):
+    """The scene pitched by ``deg`` about the x axis through the front's centre (its normal
+    tilts up or down by ``deg``, as a plane fitted to a noisy mesh does)."""
+    mesh, outer = scene(handle)
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.deg2rad(deg), [1, 0, 0], [0.25, Y, 0.45]))
+    return infer_parts(mesh, [segment(mesh, outer)], CAMS, cfg)
+
+
+@pytest.mark.parametrize("deg", [-4.0, 2.0, 9.0])
+def test_gravity_prior_levels_a_drawer_and_plumbs_a_door_hinge(deg):
+    (p,), rep = tilted_run("center", deg)
+    assert p.extra["family"] == "drawer"
+    assert np.allclose(p.axis.direction, [0, -1, 0], atol=1e-9)  # level: gravity cannot roll it open
+    assert rep[0]["tilt_deg"] == pytest.approx(abs(deg), abs=0.05) and rep[0]["plumbed"]
+    (d,), _ = tilted_run("right", deg)
+    assert d.extra["hinge"] == "left" and np.allclose(d.axis.direction, [0, 0, -1], atol=1e-9)
+    # off: the axis keeps the fitted tilt
+    off = ArticulateConfig(fronts=FrontsConfig(plumb_deg=0.0))
+    (q,), rep = tilted_run("center", deg, off)
+    assert np.degrees(np.arcsin(abs(q.axis.direction[2]))) == pytest.approx(abs(deg), abs=0.05)
+    assert not rep[0]["plumbed"]
+
+
+def test_a_front_tilted_past_the_prior_keeps_its_plane():
+    cfg = ArticulateConfig(fronts=FrontsConfig(plumb_deg=5.0))
+    (p,), rep = tilted_run("center", 8.0, cfg)
+    assert rep[0]["tilt_deg"] == pytest.approx(8.0, abs=0.05) and not rep[0]["plumbed"]
+    assert np.degrees(np.arcsin(abs(p.axis.direction[2]))) == pytest.approx(8.0, abs=0.05)
+    with pytest.raises(ConfigError, match="plumb_deg"):
+        FrontsConfig(plumb_deg=30.0)
