@@ -25,9 +25,9 @@ class JointConfig:
     ``kv = (inertia about the joint + armature) / drive_tau``: every part, whatever its mass,
     reaches the target speed with the same time constant ``drive_tau`` (s) and the same
     acceleration, and the servo is never stiffer than the implicit integrator resolves
-    (drive_tau >> timestep); the passive damping and friction slow it by
-    (damping + frictionloss / speed) / (kv + damping) (~5 % for a 5 kg drawer or a 0.35 kg·m^2
-    door). ``effort``: the drive's force limit (MJCF ``forcerange``, URDF ``<limit effort>``).
+    (drive_tau >> timestep). The servo feeds the joint's ``damping`` forward (its gain on the
+    target is kv + damping), so only the dry friction leaves the steady speed short of the
+    target, by friction / ((kv + damping) speed). ``effort``: the drive's force limit (MJCF ``forcerange``, URDF ``<limit effort>``).
     ``friction_mu``: runner friction as a fraction of the part's weight (:meth:`friction`), so a
     heavy drawer whose reconstructed axis tilts down by less than atan(mu) stays shut."""
 

@@ -27,7 +27,10 @@ Decisions:
   kitchen whose parts a hand or a robot moves against their joints' damping and friction alone
   (an enabled servo at its default control 0 is a damper of gain ``kv``: a 20 N pull moves a
   5 kg drawer ~5 cm in 3 s). Whoever drives the parts turns the group on (:func:`set_drives`).
-* Drives: a velocity servo with ``kv = (inertia about the joint + armature) / drive_tau`` (the
+* Drives: a velocity servo, force = (kv + damping) ctrl - kv qdot (the joint's viscous damping fed
+  forward, so that the steady speed is the target less only friction / (kv + damping), even for
+  a light door whose kv is near its hinge's damping; at ctrl = 0 a damper of gain kv), with
+  ``kv = (inertia about the joint + armature) / drive_tau`` (the
   same response for every part whatever its mass; a gain proportional to the inertia never
   outruns the integrator, even when the force limit clips it), control range +-drive speed,
   force range +-effort. Joint limits and dry friction use ``solreflimit = solreffriction =
@@ -166,7 +169,11 @@ def build_spec(model: TwinModel, cfg: SimConfig | None = None) -> mujoco.MjSpec:
         _add_shapes(spec, body, p.id, p.collision, -origin, True, bits["part"], cfg, assets)
         _add_shapes(spec, body, p.id, p.visual, -origin, False, bits["part"], cfg, assets)
         act = spec.add_actuator(name=p.id, target=p.id, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        act.set_to_velocity(kv=drive_gain(p, cfg, props))
+        kv = drive_gain(p, cfg, props)
+        act.set_to_velocity(kv=kv)
+        gain = np.array(act.gainprm)
+        gain[0] = kv + jc.damping  # feed-forward of the joint's damping: force = (kv + b) u - kv qdot
+        act.gainprm = gain
         act.group = DRIVE_GROUP
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         act.ctrlrange = [-jc.speed, jc.speed]
