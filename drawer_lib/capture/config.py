@@ -22,11 +22,34 @@ class VideoSource:
 @dataclass(frozen=True)
 class DirSource:
     """An existing capture folder (docs/formats.md#capture), e.g. from nerfstudio's ns-process-data.
-    ``metric_scale`` / ``gravity`` state whether its world frame is in metres / +z up."""
+    ``metric_scale`` / ``gravity`` state whether its world frame is in metres / +z up (a
+    Polycam, ARKit or Record3D capture as ``ns-process-data`` writes it is both). A depth map
+    smaller than its image (a phone's LiDAR) is brought to the image's size on import by
+    ``depth_upsample`` (``edge_aware``: guided by the RGB, with ``upsample_sigma_color`` on
+    0-255 colours, interpolating among samples within ``upsample_same_surface`` (relative) of
+    each other; ``nearest``: nerfstudio's), after its pixels of confidence below
+    ``min_confidence`` (0 low, 1 medium, 2 high; 0 keeps all) are made invalid
+    (:mod:`drawer_lib.capture.rgbd`)."""
 
     path: str = ""
     metric_scale: bool = False
     gravity: bool = False
+    depth_upsample: str = "edge_aware"
+    min_confidence: int = 1
+    upsample_sigma_color: float = 25.0
+    upsample_same_surface: float = 0.03
+
+    def __post_init__(self):
+        from drawer_lib.capture.rgbd import UPSAMPLE_METHODS
+
+        if self.depth_upsample not in UPSAMPLE_METHODS:
+            raise ConfigError(f"dir.depth_upsample = {self.depth_upsample!r} is not one of {UPSAMPLE_METHODS}")
+        if self.min_confidence not in (0, 1, 2):
+            raise ConfigError(f"dir.min_confidence = {self.min_confidence} must be 0, 1 or 2")
+        if not self.upsample_sigma_color > 0:
+            raise ConfigError(f"dir.upsample_sigma_color = {self.upsample_sigma_color} must be > 0")
+        if not 0 <= self.upsample_same_surface < 1:
+            raise ConfigError(f"dir.upsample_same_surface = {self.upsample_same_surface} must be in [0, 1)")
 
 
 @dataclass(frozen=True)

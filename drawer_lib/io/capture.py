@@ -5,7 +5,7 @@ library's OpenCV world-to-camera convention (:mod:`drawer_lib.geometry`).
 """
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,14 +19,17 @@ from drawer_lib.io.images import (
     read_json,
     read_npy,
     read_rgb,
+    read_u8,
     read_u16,
     write_json,
 )
 from drawer_lib.paths import capture_name
 
 CAMERA_MODELS = ("PINHOLE", "OPENCV")
-FRAME_FILE_KEYS = ("depth_file_path", "mono_depth_file_path", "mono_normal_file_path", "detections_path")
+FRAME_FILE_KEYS = ("depth_file_path", "mono_depth_file_path", "mono_normal_file_path", "detections_path",
+                   "confidence_file_path")
 PER_FRAME_CAMERA_KEYS = ("camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "k3", "k4", "p1", "p2")
+PINHOLE_KEYS = ("fl_x", "fl_y", "cx", "cy", "w", "h")
 
 
 @dataclass(frozen=True)
@@ -39,6 +42,8 @@ class Frame:
     mono_depth_file_path: str | None = None
     mono_normal_file_path: str | None = None
     detections_path: str | None = None
+    confidence_file_path: str | None = None  # the depth's confidence (8-bit, at the depth's size)
+    intrinsics: Intrinsics | None = None  # the frame's own camera when the file gives one per frame
 
     @property
     def stem(self) -> str:
@@ -60,6 +65,9 @@ class Frame:
             v = getattr(self, k)
             if v is not None:
                 d[k] = v
+        if self.intrinsics is not None:
+            it = self.intrinsics
+            d.update({"fl_x": it.fx, "fl_y": it.fy, "cx": it.cx, "cy": it.cy, "w": it.width, "h": it.height})
         return d
 
 
@@ -81,9 +89,32 @@ class Capture:
         return read_rgb(self.root / self.frames[i].file_path)
 
     def depth(self, i: int) -> np.ndarray:
-        """float32 [H, W] metric z-depth in metres, 0 = invalid."""
-        p = self._path(i, "depth_file_path")
-        return read_depth(p, self.depth_unit_scale_factor)
+        """float32 [H, W] metric z-depth in metres, 0 = invalid; a depth map smaller than the
+        image (a phone's LiDAR) is brought to the image's size by nearest neighbour (the
+        capture stage's import does it once, edge-aware: :mod:`drawer_lib.capture.rgbd`)."""
+        d = self.depth_raw(i)
+        it = self.frame_intrinsics(i)
+        if d.shape != (it.height, it.width):
+            from drawer_lib.capture.rgbd import upsample_depth
+
+            d = upsample_depth(d, (it.height, it.width), method="nearest")
+        return d
+
+    def depth_raw(self, i: int) -> np.ndarray:
+        """float32 [h, w] metric z-depth in metres as stored (0 = invalid), at its own size."""
+        return read_depth(self._path(i, "depth_file_path"), self.depth_unit_scale_factor)
+
+    def confidence(self, i: int) -> np.ndarray:
+        """uint8 [h, w] confidence levels of frame ``i``'s depth, at the depth's size: 0 low,
+        1 medium, 2 high (Polycam's 0 / 127 / 255 read as such)."""
+        from drawer_lib.capture.rgbd import confidence_levels
+
+        p = self._path(i, "confidence_file_path")
+        return confidence_levels(read_u8(p), str(p))
+
+    def frame_intrinsics(self, i: int) -> Intrinsics:
+        """Frame ``i``'s camera: its own when the file gives one per frame, else the capture's."""
+        return self.frames[i].intrinsics or self.intrinsics
 
     def mono_depth(self, i: int) -> np.ndarray:
         """float32 [H, W] relative depth (unknown per-frame scale and shift)."""
@@ -111,9 +142,14 @@ class Capture:
         """True when every frame has ``key`` (one of FRAME_FILE_KEYS)."""
         return len(self.frames) > 0 and all(getattr(f, key) is not None for f in self.frames)
 
+    @property
+    def per_frame_cameras(self) -> bool:
+        """True when some frame's camera differs from the capture's (:attr:`intrinsics`)."""
+        return any(f.intrinsics is not None and f.intrinsics != self.intrinsics for f in self.frames)
+
     def camera(self, i: int) -> Camera:
         """The posed camera of frame ``i``."""
-        return Camera(self.intrinsics, self.frames[i].w2c)
+        return Camera(self.frame_intrinsics(i), self.frames[i].w2c)
 
     def cameras(self, frames: list[int]) -> list[Camera]:
         return [self.camera(i) for i in frames]
@@ -162,6 +198,43 @@ def split_every(n: int, test_every: int) -> tuple[list[int], list[int]]:
     return train, test
 
 
+MAX_UNCOVERED = 0.01  # a frame's own camera may leave this fraction of the capture camera's width / height unseen
+
+
+def reference_camera(cams: list[Intrinsics], top: Intrinsics | None, src: str, names: list[str]) -> Intrinsics:
+    """The capture's one camera, given each frame's: theirs when they agree; else the top-level
+    camera when the file has one, or the camera of the frames' common size with the median
+    principal point and the largest focal lengths (the narrowest view, which every frame
+    covers), to which the ``dir`` import resamples each frame. A frame whose own camera leaves
+    more than ``MAX_UNCOVERED`` of that view unseen, or frames of different sizes, are errors
+    naming them."""
+    if all(c == cams[0] for c in cams):
+        return cams[0]
+    sizes = {(c.width, c.height) for c in cams}
+    if len(sizes) > 1:
+        bad = [n for n, c in zip(names, cams) if (c.width, c.height) != (cams[0].width, cams[0].height)]
+        raise CaptureError(f"{src}: frames differ in image size {sorted(sizes)} ({bad[0]} and others); one "
+                           "size for all frames is supported")
+    if top is not None:
+        ref = top
+    else:
+        med = lambda a: float(np.median([getattr(c, a) for c in cams]))  # noqa: E731
+        ref = Intrinsics(max(c.fx for c in cams), max(c.fy for c in cams), med("cx"), med("cy"), cams[0].width,
+                         cams[0].height, cams[0].dist)
+    for n, c in zip(names, cams):
+        # the reference image's border, seen through the frame's camera (pixels, continuous)
+        xs = (np.array([0.0, ref.width]) - ref.cx) / ref.fx * c.fx + c.cx
+        ys = (np.array([0.0, ref.height]) - ref.cy) / ref.fy * c.fy + c.cy
+        out_x = max(0.0, -xs[0]) + max(0.0, xs[1] - c.width)
+        out_y = max(0.0, -ys[0]) + max(0.0, ys[1] - c.height)
+        if out_x > MAX_UNCOVERED * ref.width or out_y > MAX_UNCOVERED * ref.height:
+            raise CaptureError(f"{src}: frame {n}'s camera (fl_x {c.fx:g}, fl_y {c.fy:g}, cx {c.cx:g}, cy {c.cy:g}) "
+                               f"leaves {out_x:.1f} x {out_y:.1f} px of the capture's camera (fl_x {ref.fx:g}, "
+                               f"fl_y {ref.fy:g}, cx {ref.cx:g}, cy {ref.cy:g}) unseen (at most {MAX_UNCOVERED:.0%}); "
+                               "drop or crop that frame")
+    return ref
+
+
 def load_capture(root: Path, check_files: bool = True, default_test_every: int | None = None,
                  progress: bool = False) -> Capture:
     """Read and validate a capture folder.
@@ -183,24 +256,30 @@ def load_capture(root: Path, check_files: bool = True, default_test_every: int |
     model = d.get("camera_model", "PINHOLE")
     if model not in CAMERA_MODELS:
         raise CaptureError(f"{src}: camera_model {model!r} is not one of {CAMERA_MODELS}")
-    fx, fy = _num(d, "fl_x", src, True), _num(d, "fl_y", src, True)
-    cx, cy = _num(d, "cx", src), _num(d, "cy", src)
-    w, h = _num(d, "w", src, True), _num(d, "h", src, True)
-    if w != int(w) or h != int(h):
-        raise CaptureError(f"{src}: image size w={w}, h={h} is not integral")
     dist = tuple(_num(d, k, src) if k in d else 0.0 for k in ("k1", "k2", "p1", "p2"))
     for k in ("k3", "k4", "k5", "k6"):
         if k in d and _num(d, k, src) != 0.0:
             raise CaptureError(f"{src}: {k} = {d[k]}: only the OPENCV model (k1, k2, p1, p2) is supported")
     if model == "PINHOLE" and any(dist):
         raise CaptureError(f"{src}: camera_model PINHOLE with distortion {dist}; use OPENCV")
-    intr = Intrinsics(fx, fy, cx, cy, int(w), int(h), dist)  # type: ignore[arg-type]
     scale = _num(d, "depth_unit_scale_factor", src, True) if "depth_unit_scale_factor" in d else 0.001
+    top_cam = all(k in d for k in PINHOLE_KEYS)  # else every frame carries its own (Polycam, ARKit)
+
+    def pinhole(obj: dict, where: str) -> Intrinsics:
+        fx, fy = _num(obj, "fl_x", where, True), _num(obj, "fl_y", where, True)
+        cx, cy = _num(obj, "cx", where), _num(obj, "cy", where)
+        w, h = _num(obj, "w", where, True), _num(obj, "h", where, True)
+        if w != int(w) or h != int(h):
+            raise CaptureError(f"{where}: image size w={w}, h={h} is not integral")
+        return Intrinsics(fx, fy, cx, cy, int(w), int(h), dist)  # type: ignore[arg-type]
+
+    top = pinhole(d, src) if top_cam else None
 
     raw_frames = d.get("frames")
     if not isinstance(raw_frames, list) or not raw_frames:
         raise CaptureError(f"{src}: no frames")
     frames, seen = [], {}
+    lens = {"camera_model": model, **{k: d.get(k, 0.0) for k in ("k1", "k2", "k3", "k4", "p1", "p2")}}
     for k, fr in enumerate(raw_frames):
         fp = fr.get("file_path") if isinstance(fr, dict) else None
         if not isinstance(fp, str) or not fp:
@@ -215,14 +294,24 @@ def load_capture(root: Path, check_files: bool = True, default_test_every: int |
         why = check_rigid(T)
         if why:
             raise CaptureError(f"{src}: frame {fp}: transform_matrix {why}")
-        top = {"camera_model": model, **{k: d.get(k, 0.0) for k in ("k1", "k2", "k3", "k4", "p1", "p2")}}
-        own = {k: fr[k] for k in PER_FRAME_CAMERA_KEYS if k in fr and fr[k] != top.get(k, d.get(k))}
-        if own:
-            raise CaptureError(f"{src}: frame {fp} has its own camera {own}; one camera for all frames is supported")
-        frames.append(Frame(fp, T, *(fr.get(key) for key in FRAME_FILE_KEYS)))
+        own_lens = {k: fr[k] for k in lens if k in fr and fr[k] != lens[k]}
+        if own_lens:
+            raise CaptureError(f"{src}: frame {fp} has its own lens model {own_lens}; one lens model (camera_model, "
+                               "distortion) for all frames is supported")
+        if top is None:
+            missing = [k for k in PINHOLE_KEYS if k not in fr]
+            if missing:
+                raise CaptureError(f"{src}: missing {missing[0]!r} (neither at the top level nor in frame {fp})")
+            cam = pinhole(fr, f"{src}: frame {fp}")
+        else:
+            cam = pinhole({**{k: d[k] for k in PINHOLE_KEYS}, **{k: fr[k] for k in PINHOLE_KEYS if k in fr}},
+                          f"{src}: frame {fp}")
+        frames.append(Frame(fp, T, *(fr.get(key) for key in FRAME_FILE_KEYS), intrinsics=cam))
+    intr = reference_camera([f.intrinsics for f in frames], top, src, [f.file_path for f in frames])
+    frames = [f if f.intrinsics != intr else replace(f, intrinsics=None) for f in frames]
 
     extra = {k: v for k, v in d.items() if k not in (
-        "camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "p1", "p2",
+        "camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "k3", "k4", "p1", "p2",
         "depth_unit_scale_factor", "frames", "train_filenames", "test_filenames")}
 
     if "train_filenames" in d or "test_filenames" in d:
@@ -253,15 +342,25 @@ def load_capture(root: Path, check_files: bool = True, default_test_every: int |
 
 def validate_files(cap: Capture, progress: bool = False) -> None:
     """Decode every file a frame names and check kinds and sizes (CaptureError on the first fault)."""
-    W, H = cap.intrinsics.width, cap.intrinsics.height
     for i, fr in enumerate(tqdm(cap.frames, desc="validate capture", disable=not progress, leave=False)):
+        it = cap.frame_intrinsics(i)
+        W, H = it.width, it.height
         size = image_size(cap.root / fr.file_path)
         if size != (W, H):
             raise CaptureError(f"{cap.root / fr.file_path}: size {size[0]}x{size[1]}, {capture_name('transforms')} says {W}x{H}")
         if fr.depth_file_path is not None:
-            dep = cap.depth(i)
-            if dep.shape != (H, W):
-                raise CaptureError(f"{cap.root / fr.depth_file_path}: size {dep.shape[1]}x{dep.shape[0]}, expected {W}x{H}")
+            h, w = cap.depth_raw(i).shape
+            if (h, w) != (H, W) and (h > H or w > W or abs(w * H - h * W) > 0.01 * W * H):
+                raise CaptureError(f"{cap.root / fr.depth_file_path}: size {w}x{h}; a depth map must have the image's "
+                                   f"size {W}x{H} or be smaller with its aspect (a phone's LiDAR: 256x192 beside 1024x768)")
+            if fr.confidence_file_path is not None:
+                c = cap.confidence(i)
+                if c.shape != (h, w):
+                    raise CaptureError(f"{cap.root / fr.confidence_file_path}: size {c.shape[1]}x{c.shape[0]}, expected "
+                                       f"the depth's {w}x{h}")
+        elif fr.confidence_file_path is not None:
+            raise CaptureError(f"{cap.root / capture_name('transforms')}: frame {fr.file_path} has a "
+                               "confidence_file_path but no depth_file_path")
         if fr.mono_depth_file_path is not None:
             cap.mono_depth(i)
         if fr.mono_normal_file_path is not None:

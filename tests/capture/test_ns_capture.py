@@ -72,11 +72,19 @@ def test_per_frame_cameras_and_other_models_are_named(ns_capture, tmp_path):
     d = tmp_path / "c"
     shutil.copytree(ns_capture, d)
     tf = json.loads((d / "transforms.json").read_text())
-    tf["frames"][3]["fl_x"] = 99.0
+    tf["frames"][3]["fl_x"] = 99.0  # zoomed in: it sees too little of the capture's view to be resampled to it
     (d / "transforms.json").write_text(json.dumps(tf))
-    with pytest.raises(CaptureError, match="frame images/frame_00004.jpg has its own camera"):
+    with pytest.raises(CaptureError, match=r"frame images/frame_00004.jpg's camera \(fl_x 99.*leaves 62.6 x 0.0 px"):
         load_capture(d, check_files=False, default_test_every=8)
-    del tf["frames"][3]["fl_x"]
+    tf["frames"][3]["fl_x"] = tf["fl_x"] * 0.995  # a phone's focal length drifts: resampled on import
+    (d / "transforms.json").write_text(json.dumps(tf))
+    cap = load_capture(d, check_files=False, default_test_every=8)
+    assert cap.per_frame_cameras and cap.frame_intrinsics(3).fx == tf["fl_x"] * 0.995 and cap.intrinsics.fx == tf["fl_x"]
+    tf["frames"][3]["k1"] = 0.2
+    (d / "transforms.json").write_text(json.dumps(tf))
+    with pytest.raises(CaptureError, match="frame images/frame_00004.jpg has its own lens model"):
+        load_capture(d, check_files=False, default_test_every=8)
+    del tf["frames"][3]["fl_x"], tf["frames"][3]["k1"]
     tf["k3"] = 0.01
     (d / "transforms.json").write_text(json.dumps(tf))
     with pytest.raises(CaptureError, match="k3"):
