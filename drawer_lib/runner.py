@@ -13,6 +13,7 @@ ends with a one-line message naming the file or value and exit code 2.
 
 import csv
 import functools
+import json
 import math
 import os
 import random
@@ -153,6 +154,15 @@ class StageRun:
             m["skipped"] = dict(self.skipped)
         write_json(self.dir / LAYOUT["metrics"], m)
         return m
+
+
+def read_skips(metrics_path: Path) -> dict[str, str]:
+    """What a finished stage skipped and why (its ``metrics.json``'s ``skipped``; {} when it
+    skipped nothing or has not run)."""
+    if not Path(metrics_path).is_file():
+        return {}
+    skipped = json.loads(Path(metrics_path).read_text()).get("skipped") or {}
+    return {str(k): str(v) for k, v in skipped.items()}
 
 
 _OWNER = ".owner"  # pid of the process writing a temporary folder

@@ -1,6 +1,6 @@
 #!/usr/bin/env python
 """A phone's LiDAR depth brought to its RGB's size: nearest (nerfstudio's) against the
-edge-aware upsampling of :mod:`drawer_lib.capture.rgbd`, on synthetic kitchens rendered with
+edge-aware upsampling of :mod:`drawer_lib.io.rgbd`, on synthetic kitchens rendered with
 exact depth, the depth sampled as the sensor does (one sample per ``--factor`` x ``--factor``
 cell: the mean of its central 2 x 2 pixels). ``kitchen_tiny`` is the scene the defaults were
 chosen on; the others are held out. Reports per scene the mean absolute error over the pixels
@@ -15,21 +15,19 @@ Writes ``<out>/summary.json`` and prints a table. Simulated input: rendered dept
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from drawer_lib.capture.build import build_capture
+from drawer_lib.capture.config import CaptureConfig, SceneConfig
+from drawer_lib.config.compose import compose_config
+from drawer_lib.config.typed import to_typed
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.rgbd import upsample_depth
 
-from drawer_lib.capture.build import build_capture  # noqa: E402
-from drawer_lib.capture.config import CaptureConfig, SceneConfig  # noqa: E402
-from drawer_lib.capture.rgbd import upsample_depth  # noqa: E402
-from drawer_lib.config.compose import compose_config  # noqa: E402
-from drawer_lib.config.typed import to_typed  # noqa: E402
-from drawer_lib.io.capture import load_capture  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 METHODS = {
     "nearest": {"method": "nearest"},

@@ -6,6 +6,11 @@
     python -m stages.sdf -cn dvc_stage scene=kitchen_small         # as DVC runs it: params.yaml
     python -m stages.sdf -cn dvc_stage scene=kitchen_small sdf=neural_mono +geometry_variant=neural_mono
                                                                    # a comparison variant -> out/<scene>/geometry/<v>/sdf
+
+A comparison variant the scene cannot run (the TSDF on a capture without metric depth) writes
+only its ``metrics.json`` with the reason under ``skipped``, and the mesh stage after it does
+the same: the comparison records the skip and the run goes on. The scene's own ``sdf`` stage
+stops with the error instead.
 """
 
 import hydra
@@ -16,7 +21,8 @@ from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.runner import main_guard, stage_run
 from drawer_lib.sdf.config import SdfConfig
-from drawer_lib.sdf.pipeline import run_sdf
+from drawer_lib.io.manifest import read_manifest
+from drawer_lib.sdf.pipeline import run_sdf, unmet_input
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
@@ -27,6 +33,10 @@ def main(cfg: DictConfig) -> None:
     src, dst = scene_paths(cfg, scene)
     cap = load_capture(src.capture)
     with stage_run("sdf", dst.stage_dir("sdf"), seed=cfg.seed) as run:
+        why = unmet_input(sdf_cfg, read_manifest(src.file("capture", "manifest")))
+        if why and cfg.get("geometry_variant") is not None:  # a comparison the scene cannot run: recorded, not fatal
+            run.skip("sdf", why)
+            return
         run.metrics.update(run_sdf(sdf_cfg, cap, run))
 
 

@@ -29,7 +29,7 @@ class DirSource:
     0-255 colours, interpolating among samples within ``upsample_same_surface`` (relative) of
     each other; ``nearest``: nerfstudio's), after its pixels of confidence below
     ``min_confidence`` (0 low, 1 medium, 2 high; 0 keeps all) are made invalid
-    (:mod:`drawer_lib.capture.rgbd`)."""
+    (:mod:`drawer_lib.io.rgbd`)."""
 
     path: str = ""
     metric_scale: bool = False
@@ -40,7 +40,7 @@ class DirSource:
     upsample_same_surface: float = 0.03
 
     def __post_init__(self):
-        from drawer_lib.capture.rgbd import UPSAMPLE_METHODS
+        from drawer_lib.io.rgbd import UPSAMPLE_METHODS
 
         if self.depth_upsample not in UPSAMPLE_METHODS:
             raise ConfigError(f"dir.depth_upsample = {self.depth_upsample!r} is not one of {UPSAMPLE_METHODS}")

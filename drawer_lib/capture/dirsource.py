@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from drawer_lib.capture.config import DirSource
-from drawer_lib.capture.rgbd import upsample_depth
+from drawer_lib.io.rgbd import upsample_depth
 from drawer_lib.errors import CaptureError
 from drawer_lib.geometry.distortion import remap, undistorted_intrinsics, undistortion_map
 from drawer_lib.io.capture import Capture, Frame, load_capture, write_transforms
@@ -42,7 +42,7 @@ def resolve_input(root: Path, p: str, what: str) -> Path:
 class _Resampler:
     """Copies the rasters of the frames to the capture's one pinhole camera ``dst``: undistorted
     when the source camera has distortion, resampled when a frame has its own camera; a depth
-    map smaller than its image is first brought to the image's size (:mod:`~drawer_lib.capture.rgbd`)
+    map smaller than its image is first brought to the image's size (:mod:`~drawer_lib.io.rgbd`)
     after its low-confidence pixels are dropped."""
 
     def __init__(self, cap: Capture, src: DirSource):

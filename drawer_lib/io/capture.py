@@ -91,11 +91,11 @@ class Capture:
     def depth(self, i: int) -> np.ndarray:
         """float32 [H, W] metric z-depth in metres, 0 = invalid; a depth map smaller than the
         image (a phone's LiDAR) is brought to the image's size by nearest neighbour (the
-        capture stage's import does it once, edge-aware: :mod:`drawer_lib.capture.rgbd`)."""
+        capture stage's import does it once, edge-aware: :mod:`drawer_lib.io.rgbd`)."""
         d = self.depth_raw(i)
         it = self.frame_intrinsics(i)
         if d.shape != (it.height, it.width):
-            from drawer_lib.capture.rgbd import upsample_depth
+            from drawer_lib.io.rgbd import upsample_depth
 
             d = upsample_depth(d, (it.height, it.width), method="nearest")
         return d
@@ -107,7 +107,7 @@ class Capture:
     def confidence(self, i: int) -> np.ndarray:
         """uint8 [h, w] confidence levels of frame ``i``'s depth, at the depth's size: 0 low,
         1 medium, 2 high (Polycam's 0 / 127 / 255 read as such)."""
-        from drawer_lib.capture.rgbd import confidence_levels
+        from drawer_lib.io.rgbd import confidence_levels
 
         p = self._path(i, "confidence_file_path")
         return confidence_levels(read_u8(p), str(p))

@@ -23,6 +23,7 @@ class Row:
     sdf: dict
     mesh: dict
     curve: list[dict]
+    skipped: str | None = None  # why the scene could not run this config
 
 
 def _read_json(p: Path) -> dict:
@@ -45,8 +46,10 @@ def collect(out: Path, scenes: list[str], selected: str, variants: list[str]) ->
         for name, sp in entries:
             if not sp.metrics("mesh").is_file():
                 continue
-            rows.append(Row(s, name, sp.stage_dir("mesh").parent, _read_json(sp.metrics("sdf")),
-                            _read_json(sp.metrics("mesh")), read_curve(sp.stage_dir("sdf") / LAYOUT["curve"])))
+            sdf, mesh = _read_json(sp.metrics("sdf")), _read_json(sp.metrics("mesh"))
+            why = (sdf.get("skipped") or {}).get("sdf")
+            rows.append(Row(s, name, sp.stage_dir("mesh").parent, sdf, mesh,
+                            read_curve(sp.stage_dir("sdf") / LAYOUT["curve"]), why))
     return rows
 
 
@@ -61,6 +64,10 @@ def table(rows: list[Row]) -> tuple[str, dict]:
     cells: list[list] = []
     js: dict = {}
     for r in rows:
+        if r.skipped:
+            cells.append([r.scene, r.name, f"skipped: {r.skipped}", *("–" for _ in COLUMNS), "–", "–", "–"])
+            js.setdefault(r.scene, {})[r.name] = {"skipped": r.skipped}
+            continue
         depth = r.sdf.get("depth_source", "sensor" if r.sdf.get("method") == "tsdf" else "?")
         vals = [r.mesh.get(c[0]) for c in COLUMNS]
         cells.append([r.scene, r.name, depth, *(_fmt(v, c[2]) for v, c in zip(vals, COLUMNS)),

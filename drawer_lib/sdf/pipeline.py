@@ -47,10 +47,18 @@ def run_sdf(cfg: SdfConfig, cap: Capture, run: StageRun) -> dict:
     return _run_neural(cfg, cap, manifest, run, probe)
 
 
+def unmet_input(cfg: SdfConfig, manifest) -> str | None:
+    """Why ``cfg`` cannot run on a capture with this manifest (None: it can): the TSDF fuses
+    metric depth, which a plain video lacks."""
+    if cfg.method == "tsdf" and not manifest.has.get("depth", False):
+        return f"sdf.method = tsdf needs metric depth, but {manifest.missing('depth')}"
+    return None
+
+
 def _run_tsdf(cfg, cap, manifest, run, probe) -> dict:
-    if not manifest.has.get("depth", False):
-        raise InputError(f"sdf.method = tsdf needs metric depth, but {manifest.missing('depth')}; "
-                         "use the neural SDF (sdf=neural) for RGB + monocular priors")
+    why = unmet_input(cfg, manifest)
+    if why:
+        raise InputError(f"{why}; use the neural SDF (sdf=neural) for RGB + monocular priors")
     t0 = time.perf_counter()
     grid = fuse_tsdf(cap, cap.train, cfg.tsdf, run.progress)
     fuse_s = time.perf_counter() - t0

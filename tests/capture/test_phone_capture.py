@@ -14,7 +14,7 @@ from helpers import render_capture, sensor_cfg
 from PIL import Image
 
 from drawer_lib.capture.config import DirSource, SceneConfig
-from drawer_lib.capture.rgbd import confidence_levels, upsample_depth
+from drawer_lib.io.rgbd import confidence_levels, upsample_depth
 from drawer_lib.errors import CaptureError, ConfigError
 from drawer_lib.geometry.distortion import remap, undistortion_map
 from drawer_lib.io.capture import load_capture

@@ -98,6 +98,22 @@ def test_tsdf_without_depth_and_unknown_estimator_are_config_errors(tmp_path, ex
     (cap / "manifest.json").write_text(json.dumps(man))
     r = run("sdf", tmp_path, "sdf=tsdf")
     assert r.returncode == 2 and "needs metric depth" in r.stderr and "test: depth removed" in r.stderr, r.stderr[-2000:]
+    # as a comparison (geometry@<scene>-tsdf) the scene cannot run, it is skipped with its reason and the run goes on
+    for stage in ("sdf", "mesh"):
+        r = run(stage, tmp_path, *(["sdf=tsdf"] if stage == "sdf" else []), "+geometry_variant=tsdf")
+        assert r.returncode == 0, r.stderr[-2000:]
+    v = ScenePaths(tmp_path / "out", "kitchen_tiny", "tsdf")
+    sdf, mesh = (json.loads(v.metrics(st).read_text()) for st in ("sdf", "mesh"))
+    assert "needs metric depth" in sdf["skipped"]["sdf"] and "test: depth removed" in sdf["skipped"]["sdf"]
+    assert mesh["skipped"]["mesh"].startswith("no field: the sdf was skipped (sdf.method = tsdf needs metric depth")
+    assert sorted(p.name for p in v.stage_dir("sdf").iterdir()) == ["metrics.json"]
+    assert sorted(p.name for p in v.stage_dir("mesh").iterdir()) == ["metrics.json"]
+    r = run("geometry_table", tmp_path, "scenes=[kitchen_tiny]", "geometry_variants=[tsdf]")
+    assert r.returncode == 0, r.stderr[-2000:]
+    js = json.loads((tmp_path / "reports" / "geometry" / "table.json").read_text())
+    assert js["kitchen_tiny"]["tsdf"]["skipped"].startswith("sdf.method = tsdf needs metric depth")
+    md = (tmp_path / "reports" / "geometry" / "table.md").read_text()
+    assert "| kitchen_tiny | tsdf | skipped: sdf.method = tsdf needs metric depth" in md
     r = run("sdf", tmp_path, "sdf.neural.priors.estimator=marigold", "sdf.neural.priors.depth=mono")
     assert r.returncode == 2 and "marigold" in r.stderr and "not available" in r.stderr
     assert not (tmp_path / "out" / "kitchen_tiny" / "sdf").exists()
