@@ -2,9 +2,11 @@
 
 The capture has RGB, poses, intrinsics and sparse points; it has no depth and no detections
 (the manifest says so). Its world frame is fixed as :func:`drawer_lib.sfm.align.gravity_frame`
-describes: gravity from the mean camera up direction, scale from an assumed median depth.
+describes (gravity from the mean camera up direction), and its metric scale is estimated from
+the floor, the worktop and the cameras' height (:mod:`drawer_lib.sfm.scale`).
 """
 
+import math
 import tempfile
 import time
 from collections.abc import Callable
@@ -22,9 +24,10 @@ from drawer_lib.io.images import read_rgb, write_rgb
 from drawer_lib.io.manifest import Manifest
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.paths import capture_name
-from drawer_lib.sfm.align import gravity_frame, pose_errors
+from drawer_lib.sfm.align import Sim3, gravity_frame, pose_errors
 from drawer_lib.sfm.colmap import reconstruct
 from drawer_lib.sfm.config import VideoConfig
+from drawer_lib.sfm.scale import estimate_scale
 from drawer_lib.sfm.video import drop_blurriest, read_frames
 
 
@@ -110,6 +113,10 @@ def import_video_capture(scene: str, src: VideoSource, cfg: VideoConfig, test_ev
         c2w = np.stack([res.c2w[n] for n in reg])
         depths = np.array([res.depths.get(n, np.nan) for n in reg])
         sim = gravity_frame(c2w, res.points, depths, cfg.assumed_median_depth_m)
+        # the metric scale from what the reconstruction shows (floor, worktop, camera height)
+        scale = estimate_scale(sim.apply(res.points) if len(res.points) else np.zeros((0, 3)),
+                               sim.apply(c2w[:, :3, 3]), depths * sim.s, cfg.scale, src.counter_height_m)
+        sim = Sim3(sim.s * scale.factor, sim.R, sim.t * scale.factor)
         c2w_w = sim.apply_c2w(c2w)
         out_frames = []
         for n, T in zip(reg, c2w_w):
@@ -134,6 +141,8 @@ def import_video_capture(scene: str, src: VideoSource, cfg: VideoConfig, test_ev
     }
     if src.reference:
         metrics.update(score_poses(cap, resolve_input(root, src.reference, f"scene {scene}: video.reference")))
+    used = [k for k, c in scale.cues.items() if c.get("used")]
+    metrics |= {"scale_sigma_log": round(scale.sigma, 4), "scale_cues": "+".join(used)}
     why = "RGB video: no depth sensor"
     manifest = Manifest(
         scene=scene, source="video", n_frames=len(out_frames), n_train=len(train), n_test=len(test),
@@ -146,9 +155,10 @@ def import_video_capture(scene: str, src: VideoSource, cfg: VideoConfig, test_ev
         details={"poses": {"kind": "sfm", "registered": n_reg, "kept": len(kept),
                            "unregistered": sorted(set(names) - set(reg)), "dropped_blurry": dropped},
                  "sparse_points": {"n": int(len(pts))}},
-        world_frame={"metric_scale": False, "gravity": False,
+        world_frame={"metric_scale": bool(scale.sigma <= cfg.scale.metric_sigma), "gravity": False,
                      "how": (f"RGB only: +z = the direction orthogonal to the cameras' x axes (assumes no roll, not "
-                             f"measured), scale set so the median "
-                             f"point depth is {cfg.assumed_median_depth_m} m (assumed)")},
+                             f"measured); scale estimated from {', '.join(used)} to about "
+                             f"{100 * (math.exp(scale.sigma) - 1):.0f} % (1 sigma)"),
+                     "scale": scale.to_json() | {"metric_sigma": cfg.scale.metric_sigma}},
     )
     return manifest, metrics

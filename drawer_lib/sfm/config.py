@@ -1,8 +1,9 @@
 """Config of the video source: frames from a video, structure-from-motion, world frame."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.sfm.scale import ScaleConfig
 
 
 @dataclass(frozen=True)
@@ -22,9 +23,12 @@ class VideoConfig:
 
     World frame (RGB alone fixes neither gravity nor metric scale): +z is the direction most
     orthogonal to every camera's x axis (people hold cameras without roll), +y the mean
-    horizontal viewing direction, the
-    origin the median of the SfM points, and the scale puts the median point depth at
-    ``assumed_median_depth_m`` (a guess, recorded as such in the manifest).
+    horizontal viewing direction, the origin the median of the SfM points. The scale first puts
+    the median point depth at ``assumed_median_depth_m``, then ``scale``
+    (:class:`~drawer_lib.sfm.scale.ScaleConfig`) estimates it from what the reconstruction shows
+    (the floor, the worktop, the cameras' height); the manifest records the estimate, its
+    uncertainty and its cues, and calls the frame metric when the uncertainty (log) is at most
+    ``scale.metric_sigma``.
     """
 
     frame_step: int = 1
@@ -39,6 +43,7 @@ class VideoConfig:
     min_registered_fraction: float = 0.8
     assumed_median_depth_m: float = 1.8
     num_threads: int = 1
+    scale: ScaleConfig = field(default_factory=ScaleConfig)
 
     def __post_init__(self):
         if self.frame_step < 1 or self.max_frames < 3:

@@ -38,6 +38,7 @@ from drawer_lib.complete.io import STATIC, read_complete
 from drawer_lib.errors import InputError, TwinCheckError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json, write_rgb
+from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import Part, read_parts
 from drawer_lib.metrics.articulation import match_parts
 from drawer_lib.metrics.image import psnr, ssim
@@ -197,7 +198,9 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     m["n_gaussians"] = int(len(static.means) + sum(len(g.means) for g in bodies.values()))
 
     raw = {b["id"]: b for b in cj["bodies"]}
-    twin_json = {"schema": SCHEMA, "parts": [], "static": {
+    man = cap.root / capture_name("manifest")
+    world = read_manifest(man).world_frame if man.is_file() else {}
+    twin_json = {"schema": SCHEMA, "world": world, "parts": [], "static": {
         "body": "static", "gaussians": f"{gdir}/{STATIC}.ply" if STATIC in gauss else None,
         "collision": _collision_files([raw[STATIC]["collision"][k] if new is None else _box_json(new)
                                        for k, new in kept], complete_dir, out)}}
