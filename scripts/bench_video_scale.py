@@ -18,6 +18,7 @@ generator's (about 1.4 m, close to the camera-height prior), which favours that 
 import argparse
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -54,8 +55,6 @@ def main() -> None:
     for k in a.kitchens:
         d = a.out / f"{a.split}_{k}"
         if not (d / "video" / "bench_metrics.json").is_file():
-            import shutil
-
             shutil.rmtree(d, ignore_errors=True)
             capture(kitchen_scene(base, a.split, k), ["capture/depth=off", "capture/mono=off",
                                                       "capture/detections=off"], d / "truth")

@@ -19,9 +19,9 @@ from omegaconf import DictConfig
 from drawer_lib.config.stage import scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
+from drawer_lib.io.manifest import read_manifest
 from drawer_lib.runner import main_guard, stage_run
 from drawer_lib.sdf.config import SdfConfig
-from drawer_lib.io.manifest import read_manifest
 from drawer_lib.sdf.pipeline import run_sdf, unmet_input
 
 

@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from drawer_lib.capture.config import DirSource
-from drawer_lib.io.rgbd import upsample_depth
 from drawer_lib.errors import CaptureError
 from drawer_lib.geometry.distortion import remap, undistorted_intrinsics, undistortion_map
 from drawer_lib.io.capture import Capture, Frame, load_capture, write_transforms
 from drawer_lib.io.images import read_npy, read_rgb, read_u16, write_rgb, write_u16
 from drawer_lib.io.manifest import Manifest
 from drawer_lib.io.parts import read_parts
+from drawer_lib.io.rgbd import upsample_depth
 from drawer_lib.paths import capture_name
 
 
@@ -183,12 +183,9 @@ def import_dir_capture(scene: str, src: DirSource, test_every: int, out: Path, r
     def every(key: str) -> bool:
         return new.has(key)
 
-    some = {k: any(getattr(f, k) is not None for f in new.frames) for k in
-            ("depth_file_path", "mono_depth_file_path", "mono_normal_file_path", "detections_path")}
-    if any(f.confidence_file_path is not None for f in cap.frames) and not cap.has("confidence_file_path"):
-        raise CaptureError(f"{tf}: some frames have confidence_file_path and some do not")
-    for k, v in some.items():
-        if v and not every(k):
+    for k in ("depth_file_path", "mono_depth_file_path", "mono_normal_file_path", "detections_path",
+              "confidence_file_path"):
+        if any(getattr(f, k) is not None for f in cap.frames) and not cap.has(k):
             raise CaptureError(f"{tf}: some frames have {k} and some do not")
     it = cap.intrinsics
     camera = {"camera_model": "OPENCV" if rs.distorted else "PINHOLE", "fl_x": it.fx, "fl_y": it.fy, "cx": it.cx,

@@ -23,12 +23,12 @@ from drawer_lib.io.images import (
     read_u16,
     write_json,
 )
+from drawer_lib.io.rgbd import confidence_levels, upsample_depth
 from drawer_lib.paths import capture_name
 
 CAMERA_MODELS = ("PINHOLE", "OPENCV")
 FRAME_FILE_KEYS = ("depth_file_path", "mono_depth_file_path", "mono_normal_file_path", "detections_path",
                    "confidence_file_path")
-PER_FRAME_CAMERA_KEYS = ("camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "k3", "k4", "p1", "p2")
 PINHOLE_KEYS = ("fl_x", "fl_y", "cx", "cy", "w", "h")
 
 
@@ -95,8 +95,6 @@ class Capture:
         d = self.depth_raw(i)
         it = self.frame_intrinsics(i)
         if d.shape != (it.height, it.width):
-            from drawer_lib.io.rgbd import upsample_depth
-
             d = upsample_depth(d, (it.height, it.width), method="nearest")
         return d
 
@@ -107,8 +105,6 @@ class Capture:
     def confidence(self, i: int) -> np.ndarray:
         """uint8 [h, w] confidence levels of frame ``i``'s depth, at the depth's size: 0 low,
         1 medium, 2 high (Polycam's 0 / 127 / 255 read as such)."""
-        from drawer_lib.io.rgbd import confidence_levels
-
         p = self._path(i, "confidence_file_path")
         return confidence_levels(read_u8(p), str(p))
 

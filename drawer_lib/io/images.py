@@ -67,12 +67,6 @@ def read_u8(path: Path) -> np.ndarray:
     return np.asarray(img, dtype=np.uint8).copy()
 
 
-def write_u8(path: Path, a: np.ndarray) -> None:
-    if a.dtype != np.uint8 or a.ndim != 2:
-        raise ValueError(f"write_u8: expected uint8 [H, W], got {a.dtype} {a.shape}")
-    Image.fromarray(a).save(path, compress_level=6)
-
-
 def write_u16(path: Path, a: np.ndarray) -> None:
     if a.dtype != np.uint16 or a.ndim != 2:
         raise ValueError(f"write_u16: expected uint16 [H, W], got {a.dtype} {a.shape}")
