@@ -32,6 +32,11 @@ LAYOUT = {
         "gt_mesh_instances": "capture/gt/mesh_instances.npy",
         "gt_instances": "capture/gt/instances",
     },
+    # what a 2D detector and a monocular estimator give each frame (the capture format's files),
+    # with an index of which frame has which file (drawer_lib/io/overlay.py)
+    "detect": {"dir": "detect", "index": "detect/detect.json", "detections": "detect/detections"},
+    "priors": {"dir": "priors", "index": "priors/priors.json", "mono_depth": "priors/mono_depth",
+               "mono_normal": "priors/mono_normal"},
     "sdf": {"dir": "sdf", "field": "sdf/field.pt"},
     "mesh": {"dir": "mesh", "mesh": "mesh/mesh.ply"},
     "geometry": {"dir": "geometry"},  # geometry/<variant>/ holds sdf/ and mesh/ as above
@@ -73,6 +78,8 @@ BENCH = {
     "eval": "eval",
     "kitchens": "kitchens",  # in eval/<split>/: each kitchen's articulation with the fitted weights
     "rows": "rows.json",  # in eval/<split>/: each kitchen's scores
+    "detector": "detector",  # the built-in 2D detector trained on the train split's renders
+    "detector_weights": "detector/weights.pt",
 }
 
 CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
@@ -140,6 +147,14 @@ class ScenePaths:
         return self.file("mesh", "mesh")
 
     @property
+    def detect(self) -> Path:
+        return self.stage_dir("detect")
+
+    @property
+    def priors(self) -> Path:
+        return self.stage_dir("priors")
+
+    @property
     def decompose(self) -> Path:
         return self.stage_dir("decompose")
 
@@ -169,6 +184,14 @@ class BenchPaths:
     @property
     def weights(self) -> Path:
         return Path(self.root) / BENCH["weights"]
+
+    @property
+    def detector(self) -> Path:
+        return Path(self.root) / BENCH["detector"]
+
+    @property
+    def detector_weights(self) -> Path:
+        return Path(self.root) / BENCH["detector_weights"]
 
     def eval(self, split: str) -> Path:
         """The evaluation of ``split``: ``eval/<split>/`` (its table, ``metrics.json``, rows and

@@ -16,9 +16,8 @@ from omegaconf import DictConfig
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.pipeline import run_articulate
 from drawer_lib.articulation.weights import resolve_weights
-from drawer_lib.config.stage import scene_name, scene_paths
+from drawer_lib.config.stage import open_capture, scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
-from drawer_lib.io.capture import load_capture
 from drawer_lib.paths import BenchPaths
 from drawer_lib.runner import main_guard, stage_run
 
@@ -29,7 +28,7 @@ def main(cfg: DictConfig) -> None:
     scene = scene_name(cfg)
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
     src, dst = scene_paths(cfg, scene)
-    cap = load_capture(src.capture, check_files=False)
+    cap = open_capture(src, detections=True, check_files=False)
     weights = resolve_weights(ac.types, BenchPaths(Path(cfg.paths.bench)).weights)
     with stage_run("articulate", dst.stage_dir("articulate"), seed=cfg.seed) as run:
         run.metrics.update(run_articulate(ac, cap, src.decompose, run, weights))

@@ -9,9 +9,8 @@
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import scene_name, scene_paths
+from drawer_lib.config.stage import open_capture, scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
-from drawer_lib.io.capture import load_capture
 from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.perception.pipeline import run_decompose
 from drawer_lib.runner import main_guard, stage_run
@@ -23,7 +22,7 @@ def main(cfg: DictConfig) -> None:
     scene = scene_name(cfg)
     dc = to_typed(DecomposeConfig, cfg.decompose, "decompose")
     src, dst = scene_paths(cfg, scene)
-    cap = load_capture(src.capture)
+    cap = open_capture(src, detections=True)
     with stage_run("decompose", dst.decompose, seed=cfg.seed) as run:
         run.metrics.update(run_decompose(dc, cap, src.mesh, run))
 

@@ -16,10 +16,9 @@ stops with the error instead.
 import hydra
 from omegaconf import DictConfig
 
-from drawer_lib.config.stage import scene_name, scene_paths
+from drawer_lib.config.stage import open_capture, scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
-from drawer_lib.io.capture import load_capture
-from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.overlay import capture_manifest
 from drawer_lib.runner import main_guard, stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.pipeline import run_sdf, unmet_input
@@ -31,9 +30,9 @@ def main(cfg: DictConfig) -> None:
     scene = scene_name(cfg)
     sdf_cfg = to_typed(SdfConfig, cfg.sdf, "sdf")
     src, dst = scene_paths(cfg, scene)
-    cap = load_capture(src.capture)
+    cap = open_capture(src, priors=True)
     with stage_run("sdf", dst.stage_dir("sdf"), seed=cfg.seed) as run:
-        why = unmet_input(sdf_cfg, read_manifest(src.file("capture", "manifest")))
+        why = unmet_input(sdf_cfg, capture_manifest(cap))
         if why and cfg.get("geometry_variant") is not None:  # a comparison the scene cannot run: recorded, not fatal
             run.skip("sdf", why)
             return

@@ -93,3 +93,21 @@ def quat_to_rot(q):
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def add_overlays(tmp: Path, scene: str = "kitchen_tiny", detect: bool = True, priors: bool = True) -> None:
+    """The ``detect`` and ``priors`` stages with ``model: capture`` (the capture's own files), as
+    ``dvc repro`` runs them before the stages that read them, into ``tmp/out/<scene>/``."""
+    from drawer_lib.detect.config import DetectConfig, PriorsConfig
+    from drawer_lib.detect.pipeline import run_detect, run_priors
+    from drawer_lib.io.capture import load_capture
+    from drawer_lib.runner import stage_run
+
+    sp = scene_paths(tmp, scene)
+    cap = load_capture(sp.capture, check_files=False)
+    if detect:
+        with stage_run("detect", sp.detect, seed=0) as r:
+            r.metrics.update(run_detect(DetectConfig(), cap, tmp / "bench" / "detector" / "weights.pt", r))
+    if priors:
+        with stage_run("priors", sp.priors, seed=0) as r:
+            r.metrics.update(run_priors(PriorsConfig(), cap, r))

@@ -46,7 +46,10 @@ FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.
                # the robot on two parts, no camera (its physics and dataset: tests/robot)
                "robot.max_parts=2", "robot.camera=[0,0]",
                # the benchmark: kitchen 0 of each split, at kitchen_tiny's frames
-               "bench.kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}"]
+               "bench.kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}",
+               # the built-in detector: a few steps on one train kitchen (its fit: tests/detect)
+               "detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=4", "detector.log_every=2",
+               "detector.frame_every=12"]
 
 
 def make_repo(tmp_path_factory, params: list[str], prepare=None):
@@ -207,7 +210,10 @@ def test_whole_dag_on_a_distorted_nerfstudio_capture(tmp_path_factory, exact_cap
     assert json.loads((sp.capture / capture_name("transforms")).read_text())["camera_model"] == "PINHOLE"
     sdf = json.loads(sp.metrics("sdf").read_text())
     assert "depth_loss" in sdf["skipped"] and "geometry_curve_metrics" in sdf["skipped"]
-    assert json.loads(sp.metrics("decompose").read_text())["source"] == "geometric"
+    det = json.loads(sp.metrics("detect").read_text())  # an RGB-only capture: the built-in detector's masks
+    assert det["model"] == "builtin" and det["chosen"] == "auto: the capture has none"
+    pri = json.loads(sp.metrics("priors").read_text())
+    assert pri["model"] == "none" and not pri["has_mono_depth"]
     ev = json.loads(sp.metrics("evaluate").read_text())
     assert "precision" not in ev and "articulation" in ev["skipped"]
     assert "Data and pipelines are up to date." in run("dvc", "repro").stdout

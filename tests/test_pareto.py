@@ -7,7 +7,7 @@ import shutil
 
 import numpy as np
 import pytest
-from helpers import ROOT, run_stage, scene_paths
+from helpers import ROOT, add_overlays, run_stage, scene_paths
 from omegaconf import OmegaConf
 
 from drawer_lib.config.typed import to_typed
@@ -91,6 +91,7 @@ def test_stage_runs_the_grid_on_joblib(tmp_path, exact_capture):
     shutil.copytree(exact_capture[0], sp.capture)
     sp.mesh.parent.mkdir(parents=True)
     shutil.copy(sp.capture / capture_name("gt_mesh"), sp.mesh)
+    add_overlays(tmp_path, detect=False)
     r = run_stage("pareto", tmp_path, *TINY)
     assert r.returncode == 0, r.stderr[-4000:]
     d = tmp_path / "out" / "kitchen_tiny" / "pareto"

@@ -4,7 +4,6 @@ weights (its ``decisions.json`` records every front's features, which the fit le
 Each step is the pipeline's own function, written through its own stage folder, inside the
 kitchen's folder (:meth:`drawer_lib.paths.BenchPaths.kitchen`)."""
 
-import copy
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,10 +13,10 @@ import numpy as np
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.pipeline import run_articulate
 from drawer_lib.bench.config import GEOMETRY_KEYS
+from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.capture.build import build_capture
 from drawer_lib.capture.config import CaptureConfig, SceneConfig
 from drawer_lib.config.typed import to_typed
-from drawer_lib.errors import ConfigError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.images import read_json
 from drawer_lib.mesh.config import MeshConfig
@@ -29,32 +28,16 @@ from drawer_lib.runner import stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
-from drawer_lib.synth.splits import SPLITS, split_synth
+from drawer_lib.synth.splits import SPLITS
 
 STEPS = ("capture", "sdf", "mesh", "decompose", "articulate")
+__all__ = ["KitchenConfigs", "STEPS", "build_kitchen", "kitchen_scene", "kitchen_seed"]
 
 
 def kitchen_seed(seed: int, split: str, k: int) -> int:
     """The seed of kitchen ``k`` of ``split``'s sensor noise and sampling: an independent stream
     per (seed, split, kitchen)."""
     return int(np.random.SeedSequence([int(seed), SPLITS.index(split), int(k)]).generate_state(1)[0])
-
-
-def kitchen_scene(base: dict, split: str, k: int, camera: dict | None = None) -> SceneConfig:
-    """The scene of kitchen ``k`` of ``split``: the synth scene ``base`` (a scene file's tree)
-    with the split's values (:func:`~drawer_lib.synth.splits.split_synth`) merged over it, and
-    ``camera`` (keys of the camera block, ``bench.camera``) over those."""
-    d = copy.deepcopy(base)
-    if d.get("source", "synth") != "synth" or not isinstance(d.get("synth"), dict):
-        raise ConfigError(f"bench.base_scene: a synth scene with a synth block is needed, got source {d.get('source')!r}")
-    values = split_synth(split, k)
-    values["camera"].update(camera or {})
-    for key, val in values.items():
-        if isinstance(val, dict):
-            d["synth"].setdefault(key, {}).update(val)
-        else:
-            d["synth"][key] = val
-    return to_typed(SceneConfig, d, f"bench {split} kitchen {k}", strict=False)
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,8 @@ benchmark's from ``paths.bench``).
 from pathlib import Path
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.io.capture import Capture, load_capture
+from drawer_lib.io.overlay import apply_overlay
 from drawer_lib.paths import BenchPaths, ScenePaths
 
 
@@ -53,3 +55,16 @@ def bench_paths(cfg) -> tuple[BenchPaths, BenchPaths]:
     src = BenchPaths(Path(cfg.paths.bench))
     dst = src if out_root(cfg) == Path(cfg.paths.out) else BenchPaths(out_root(cfg) / Path(cfg.paths.bench).name)
     return src, dst
+
+
+def open_capture(src: ScenePaths, *, detections: bool = False, priors: bool = False,
+                 check_files: bool = True) -> Capture:
+    """The scene's capture as a stage reads it: with ``detections`` the ``detect`` stage's 2D
+    detections in place of the capture's own, with ``priors`` the ``priors`` stage's monocular
+    depth and normals (:mod:`drawer_lib.io.overlay`)."""
+    cap = load_capture(src.capture, check_files=check_files)
+    if detections:
+        cap = apply_overlay(cap, src.file("detect", "index"))
+    if priors:
+        cap = apply_overlay(cap, src.file("priors", "index"))
+    return cap

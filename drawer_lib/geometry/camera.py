@@ -212,3 +212,30 @@ def pixel_of(points: Float[np.ndarray, "N 3"], w2c: Float[np.ndarray, "4 4"], in
     j, i = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
     ok &= (j >= 0) & (j < intr.width) & (i >= 0) & (i < intr.height)
     return np.where(ok, i, 0), np.where(ok, j, 0), z, ok
+
+
+def normals_from_depth(z: np.ndarray, intr: Intrinsics) -> np.ndarray:
+    """Unit normals [H, W, 3] (OpenCV camera frame, facing the camera) of the surface a z-depth
+    map [H, W] shows: the cross product of its back-projected points' central differences.
+    Where that is degenerate (depth <= 0 or not finite nearby, a zero-area patch) the normal is
+    the one facing the camera, (0, 0, -1).
+
+    >>> n = normals_from_depth(np.full((4, 5), 2.0), Intrinsics(10.0, 10.0, 2.5, 2.0, 5, 4))
+    >>> np.round(n[2, 2], 6).tolist() == [0.0, 0.0, -1.0]
+    True
+    """
+    z = np.asarray(z, np.float64)
+    if z.shape != (intr.height, intr.width):
+        raise ValueError(f"depth {z.shape} does not match the camera's {intr.height}x{intr.width}")
+    ok = np.isfinite(z) & (z > 0)
+    p = pixel_dirs(intr) * np.where(ok, z, 0.0)[..., None]
+    du, dv = np.gradient(p, axis=1), np.gradient(p, axis=0)
+    n = np.cross(du, dv)
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    bad = ~ok | ~np.isfinite(norm[..., 0]) | (norm[..., 0] <= 1e-12)
+    bad |= ~(np.pad(ok, 1, mode="edge")[:-2, 1:-1] & np.pad(ok, 1, mode="edge")[2:, 1:-1]
+             & np.pad(ok, 1, mode="edge")[1:-1, :-2] & np.pad(ok, 1, mode="edge")[1:-1, 2:])
+    n = n / np.where(norm > 0, norm, 1.0)
+    n = np.where((np.sum(n * p, axis=-1, keepdims=True) > 0), -n, n)
+    n[bad] = (0.0, 0.0, -1.0)
+    return n

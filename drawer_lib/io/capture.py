@@ -82,6 +82,7 @@ class Capture:
     test: list[int]
     depth_unit_scale_factor: float = 0.001
     extra: dict = field(default_factory=dict)  # other top-level keys, kept on write
+    overlays: list[dict] = field(default_factory=list)  # stage outputs read in place of optional files (io/overlay.py)
 
     # -- per-frame data ---------------------------------------------------------------------
     def image(self, i: int) -> np.ndarray:

@@ -8,7 +8,7 @@ import trimesh
 
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
-from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.overlay import capture_manifest
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.mesh.clean import clean_mesh
 from drawer_lib.mesh.config import MeshConfig
@@ -44,7 +44,7 @@ def extract_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture) -> trimesh.T
 def run_mesh(cfg: MeshConfig, field: LoadedField, cap: Capture, run: StageRun) -> dict:
     """Mesh ``field`` where the train cameras saw, clean it up, write the stage's ``mesh.ply``
     and score it against the capture's ground-truth mesh when there is one."""
-    manifest = read_manifest(cap.root / capture_name("manifest"))
+    manifest = capture_manifest(cap)
     t0 = time.perf_counter()
     raw = extract_mesh(cfg, field, cap)
     t_mc = time.perf_counter() - t0

@@ -10,7 +10,7 @@ import numpy as np
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
-from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.overlay import capture_manifest
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import articulation_metrics, match_parts, rigid_metrics
 from drawer_lib.metrics.motion import motion_emd
@@ -23,7 +23,7 @@ def run_evaluate(cap: Capture, parts_path: Path, run: StageRun, tracks_path: Pat
     ``simulate/tracks.npz``, when given); scenes without ground truth record the skip."""
     if not parts_path.is_file():
         raise InputError(f"{parts_path}: missing (run the articulate stage first)")
-    manifest = read_manifest(cap.root / capture_name("manifest"))
+    manifest = capture_manifest(cap)
     pred = read_parts(parts_path)
     m: dict = {"n_pred": sum(p.articulated for p in pred.parts)}
     if not run.needs(manifest, "articulation", "gt"):

@@ -7,7 +7,7 @@ import numpy as np
 
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
-from drawer_lib.io.manifest import read_manifest
+from drawer_lib.io.overlay import capture_manifest
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sdf.config import SdfConfig
@@ -35,7 +35,7 @@ def check_capture(cap: Capture) -> None:
 def run_sdf(cfg: SdfConfig, cap: Capture, run: StageRun) -> dict:
     """Fit the field selected by ``cfg.method`` and write the stage's ``field.pt``; returns metrics."""
     check_capture(cap)
-    manifest = read_manifest(cap.root / capture_name("manifest"))
+    manifest = capture_manifest(cap)
     probe = None
     if manifest.has.get("gt", False):
         cell = cfg.neural.eval_cell

@@ -7,7 +7,7 @@ import json
 import shutil
 
 import pytest
-from helpers import run_stage, scene_paths
+from helpers import add_overlays, run_stage, scene_paths
 
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import capture_name
@@ -19,6 +19,7 @@ def project(tmp_path, exact_capture):
     shutil.copytree(exact_capture[0], scene / "capture")
     (scene / "mesh").mkdir()
     shutil.copy(scene / "capture" / capture_name("gt_mesh"), scene_paths(tmp_path).mesh)
+    add_overlays(tmp_path, priors=False)
     return tmp_path
 
 

@@ -6,7 +6,7 @@ import json
 import shutil
 
 import pytest
-from helpers import run_stage, scene_paths
+from helpers import add_overlays, run_stage, scene_paths
 
 from drawer_lib.paths import LAYOUT, ScenePaths
 
@@ -23,6 +23,7 @@ def run(module, tmp, *extra):
 def project(tmp_path_factory, exact_capture):
     tmp = tmp_path_factory.mktemp("geom")
     shutil.copytree(exact_capture[0], tmp / "out" / "kitchen_tiny" / "capture")
+    add_overlays(tmp, detect=False)
     return tmp
 
 
@@ -92,6 +93,7 @@ def test_bad_input_is_named_and_leaves_no_output(tmp_path, exact_capture):
 def test_tsdf_without_depth_and_unknown_estimator_are_config_errors(tmp_path, exact_capture):
     cap = tmp_path / "out" / "kitchen_tiny" / "capture"
     shutil.copytree(exact_capture[0], cap)
+    add_overlays(tmp_path, detect=False)
     man = json.loads((cap / "manifest.json").read_text())
     man["has"]["depth"] = False
     man["lacks"]["depth"] = "test: depth removed"
@@ -122,6 +124,7 @@ def test_tsdf_without_depth_and_unknown_estimator_are_config_errors(tmp_path, ex
 def test_without_ground_truth_the_curve_has_time_and_loss_and_metrics_are_skipped(tmp_path, exact_capture):
     cap = tmp_path / "out" / "kitchen_tiny" / "capture"
     shutil.copytree(exact_capture[0], cap)
+    add_overlays(tmp_path, detect=False)
     shutil.rmtree(cap / "gt")
     man = json.loads((cap / "manifest.json").read_text())
     man["has"]["gt"] = False

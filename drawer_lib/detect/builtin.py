@@ -1,0 +1,174 @@
+"""The built-in detector: a small fully convolutional network (a U-Net of four levels) that
+labels every pixel background, front, front edge, handle or object, and the decoding of those
+labels into instance masks (contour-aware segmentation: the 'edge' class keeps neighbouring
+fronts apart, a watershed of it from each front's sure interior gives the masks).
+
+It needs no download: the ``detector`` stage trains it on renders of the benchmark's train
+split (:mod:`drawer_lib.detect.train`) and writes ``weights.pt`` (the state dict and the
+architecture's hyper-parameters), an output DVC hashes like any other.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from jaxtyping import Float, UInt8
+from scipy import ndimage
+from torch import Tensor, nn
+
+from drawer_lib.detect.config import BuiltinDetectConfig
+from drawer_lib.detect.masks import Detection
+from drawer_lib.errors import InputError, NonFiniteError
+
+CLASSES = ("background", "front", "edge", "handle", "object")
+BG, FRONT, EDGE, HANDLE, OBJECT = range(len(CLASSES))
+MEAN = (0.5, 0.5, 0.5)
+STD = (0.25, 0.25, 0.25)
+
+
+def _block(cin: int, cout: int) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(cin, cout, 3, padding=1, bias=False), nn.GroupNorm(4, cout), nn.ReLU(inplace=True),
+                         nn.Conv2d(cout, cout, 3, padding=1, bias=False), nn.GroupNorm(4, cout), nn.ReLU(inplace=True))
+
+
+class TinyUNet(nn.Module):
+    """[B, 3, H, W] normalised RGB -> [B, len(CLASSES), H, W] logits. Widths w, 2w, 4w, 4w;
+    H and W need not be multiples of 8 (the skips are cropped to match)."""
+
+    def __init__(self, width: int = 16, n_classes: int = len(CLASSES)):
+        super().__init__()
+        w = width
+        self.width = width
+        self.enc = nn.ModuleList([_block(3, w), _block(w, 2 * w), _block(2 * w, 4 * w), _block(4 * w, 4 * w)])
+        self.dec = nn.ModuleList([_block(8 * w, 2 * w), _block(4 * w, w), _block(2 * w, w)])
+        self.head = nn.Conv2d(w, n_classes, 1)
+
+    def forward(self, x: Float[Tensor, "B 3 H W"]) -> Float[Tensor, "B C H W"]:
+        skips = []
+        for k, e in enumerate(self.enc):
+            x = e(x if k == 0 else F.max_pool2d(x, 2, ceil_mode=True))
+            skips.append(x)
+        x = skips.pop()
+        for d in self.dec:
+            s = skips.pop()
+            x = F.interpolate(x, size=s.shape[-2:], mode="bilinear", align_corners=False)
+            x = d(torch.cat([x, s], 1))
+        return self.head(x)
+
+
+def normalise(rgb: UInt8[np.ndarray, "H W 3"] | Tensor) -> Float[Tensor, "3 H W"]:
+    t = torch.as_tensor(np.asarray(rgb)).float().div(255.0).permute(2, 0, 1)
+    return (t - torch.tensor(MEAN)[:, None, None]) / torch.tensor(STD)[:, None, None]
+
+
+def working_shape(H: int, W: int, size: int) -> tuple[int, int]:
+    """The image's size with its long side ``size`` (aspect kept, at least 1 px)."""
+    s = size / max(H, W)
+    return max(1, round(H * s)), max(1, round(W * s))
+
+
+def save_detector(path: Path, model: TinyUNet, info: dict) -> None:
+    torch.save({"kind": "drawer.builtin_detector/1", "width": model.width, "classes": list(CLASSES),
+                "state_dict": model.state_dict(), "info": info}, path)
+
+
+def load_detector(path: Path) -> tuple[TinyUNet, dict]:
+    if not path.is_file():
+        raise InputError(f"{path}: the built-in detector's weights are missing (run `dvc repro detector`)")
+    d = torch.load(path, map_location="cpu", weights_only=True)
+    if d.get("kind") != "drawer.builtin_detector/1" or list(d.get("classes", [])) != list(CLASSES):
+        raise InputError(f"{path}: not the built-in detector's weights (kind {d.get('kind')!r})")
+    m = TinyUNet(int(d["width"]))
+    m.load_state_dict(d["state_dict"])
+    return m.eval(), dict(d.get("info", {}))
+
+
+@torch.inference_mode()
+def class_probs(model: TinyUNet, rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[np.ndarray, "C h w"]:
+    """Per-class probabilities at the working size (long side ``size``)."""
+    H, W = rgb.shape[:2]
+    h, w = working_shape(H, W, size)
+    x = normalise(rgb)[None]
+    if (h, w) != (H, W):
+        x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
+    p = torch.softmax(model(x)[0], 0)
+    if not torch.isfinite(p).all():
+        raise NonFiniteError("detect: the built-in detector gave non-finite probabilities")
+    return p.numpy()
+
+
+def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig) -> list[Detection]:
+    """Instance masks (at the probabilities' size) from per-pixel class probabilities.
+
+    Fronts: markers are the connected regions of sure front pixels (P(front) > 0.5 and
+    P(edge) < ``edge_max``), eroded by ``erode_px`` (a thin bridge where an edge was only
+    half seen breaks) and of at least ``min_seed_px``; a watershed of P(edge) from them floods
+    the front, edge and handle pixels, so neighbouring fronts meet on their edge. A front keeps
+    its pixels but its handle's, has at least ``min_area_px`` and a mean P(front) + P(edge) of
+    at least ``min_score``. Handles and objects: connected regions of their class (at least a
+    quarter of ``min_area_px`` and ``min_area_px``). Scores are mean probabilities."""
+    from skimage.segmentation import watershed
+
+    cls = prob.argmax(0)
+    dets: list[Detection] = []
+    core = (prob[FRONT] > 0.5) & (prob[EDGE] < cfg.edge_max)
+    if cfg.erode_px > 0:
+        core = ndimage.binary_erosion(core, iterations=cfg.erode_px)
+    markers, n = ndimage.label(core)
+    if n:
+        areas = np.bincount(markers.ravel(), minlength=n + 1)
+        small = areas < cfg.min_seed_px
+        small[0] = False
+        markers[small[markers]] = 0
+    if markers.any():
+        lab = watershed(prob[EDGE], markers=markers, mask=np.isin(cls, (FRONT, EDGE, HANDLE)))
+        lab[cls == HANDLE] = 0  # a front's mask leaves its handle out, as a detector's does
+        pf = prob[FRONT] + prob[EDGE]
+        areas = np.bincount(lab.ravel())
+        for i in np.nonzero(areas >= cfg.min_area_px)[0]:
+            if i == 0:
+                continue
+            m = lab == i
+            score = float(pf[m].mean())
+            if score >= cfg.min_score:
+                dets.append(Detection(m, "front", score))
+    for c, label, min_area in ((HANDLE, "handle", max(1, cfg.min_area_px // 4)), (OBJECT, "object", cfg.min_area_px)):
+        comp, k = ndimage.label(cls == c)
+        if not k:
+            continue
+        areas = np.bincount(comp.ravel(), minlength=k + 1)
+        for i in np.nonzero(areas >= min_area)[0]:
+            if i == 0:
+                continue
+            m = comp == i
+            score = float(prob[c][m].mean())
+            if score >= cfg.min_score:
+                dets.append(Detection(m, label, score))
+    return dets
+
+
+def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:
+    """A mask at another size, nearest neighbour (pixel centres)."""
+    h, w = m.shape
+    if (h, w) == (H, W):
+        return m
+    ii = np.minimum(((np.arange(H) + 0.5) * h / H).astype(int), h - 1)
+    jj = np.minimum(((np.arange(W) + 0.5) * w / W).astype(int), w - 1)
+    return m[ii[:, None], jj[None, :]]
+
+
+class BuiltinDetector:
+    """The trained network with its decoding, as the ``detect`` stage runs it."""
+
+    name = "builtin"
+
+    def __init__(self, weights: Path, cfg: BuiltinDetectConfig):
+        self.model, self.info = load_detector(weights)
+        self.cfg = cfg
+        self.sources = {"weights": str(weights)}
+
+    def __call__(self, rgb: np.ndarray) -> list[Detection]:
+        H, W = rgb.shape[:2]
+        dets = decode_instances(class_probs(self.model, rgb, self.cfg.working_size), self.cfg)
+        return [Detection(resize_mask(d.mask, H, W), d.label, d.score) for d in dets]

@@ -1,0 +1,130 @@
+"""Configs of the ``detect`` and ``priors`` stages (conf/detect/, conf/priors/) and of the built-in
+detector's training (conf/detector/). Sizes in pixels."""
+
+from dataclasses import dataclass, field
+
+from drawer_lib.errors import ConfigError
+
+DETECT_MODELS = ("auto", "capture", "none", "builtin", "owlv2_sam")
+PRIORS_MODELS = ("auto", "capture", "none", "depth_anything")
+
+
+@dataclass(frozen=True)
+class HubModel:
+    """A foundation model's weights: ``path``, a local folder as ``save_pretrained`` writes it,
+    or else ``repo`` (at ``revision``) from the Hugging Face cache (``HF_HOME``)."""
+
+    repo: str
+    path: str | None = None
+    revision: str | None = None
+
+
+@dataclass(frozen=True)
+class FoundationDetectConfig:
+    """The paper's open-vocabulary detection then segmentation: OWLv2 boxes for each text prompt
+    (a box above ``box_threshold``; boxes of one label overlapping by more than ``nms_iou`` are
+    one), then SAM's mask inside each box. ``prompts`` maps the label a detection gets to the
+    prompts that find it (DRAWER: "drawer", "cabinet door", "handle")."""
+
+    detector: HubModel = field(default_factory=lambda: HubModel("google/owlv2-base-patch16-ensemble"))
+    segmenter: HubModel = field(default_factory=lambda: HubModel("facebook/sam-vit-base"))
+    prompts: dict[str, list[str]] = field(default_factory=lambda: {
+        "drawer": ["drawer"], "door": ["cabinet door", "cupboard door"], "handle": ["handle", "knob"],
+        "object": ["cup", "bowl", "bottle", "kettle"]})
+    box_threshold: float = 0.2
+    nms_iou: float = 0.5
+    max_per_frame: int = 40
+    min_area_px: int = 30
+
+    def __post_init__(self):
+        if not self.prompts or not all(self.prompts.values()):
+            raise ConfigError("detect.foundation.prompts: every label needs at least one prompt")
+        if not 0 < self.nms_iou <= 1:
+            raise ConfigError(f"detect.foundation.nms_iou = {self.nms_iou}: must be in (0, 1]")
+
+
+@dataclass(frozen=True)
+class BuiltinDetectConfig:
+    """The built-in detector at inference: images scaled so their long side is ``working_size``
+    (what it was trained at), instances decoded as
+    :func:`~drawer_lib.detect.builtin.decode_instances` says (sizes at the working size). The
+    decoding's values were chosen on train-split kitchens the fit does not use."""
+
+    working_size: int = 256
+    edge_max: float = 0.2
+    erode_px: int = 2
+    min_seed_px: int = 15
+    min_area_px: int = 40
+    min_score: float = 0.6
+
+
+@dataclass(frozen=True)
+class DetectConfig:
+    """``model``: ``capture`` (the capture's own detections: a synthetic scene's simulated
+    detector, or what a capture folder carries), ``none``, ``builtin`` (the detector the
+    ``detector`` stage trains), ``owlv2_sam`` (``foundation``), ``auto`` (``capture`` when the
+    capture has detections, else ``builtin``). Weights are never downloaded unless
+    ``allow_download``."""
+
+    model: str = "auto"
+    allow_download: bool = False
+    device: str = "cpu"
+    builtin: BuiltinDetectConfig = field(default_factory=BuiltinDetectConfig)
+    foundation: FoundationDetectConfig = field(default_factory=FoundationDetectConfig)
+
+    def __post_init__(self):
+        if self.model not in DETECT_MODELS:
+            raise ConfigError(f"detect.model = {self.model!r}: unknown (known: {list(DETECT_MODELS)})")
+
+
+@dataclass(frozen=True)
+class PriorsConfig:
+    """``model``: ``capture`` (the capture's own monocular maps), ``none``, ``auto`` (``capture``
+    when the capture has them, else ``none``: a foundation model is chosen, not assumed),
+    ``depth_anything``
+    (relative depth from Depth Anything through ``transformers``, at ``working_size`` on the
+    long side; normals read off that depth). A relative model's inverse depth d is stored as
+    depth 1 / (d / d_99 + ``inverse_shift``) (d_99: its 99th percentile), which is affine in the
+    true depth only where the model's shift is small; a metric model's depth is stored as is."""
+
+    model: str = "auto"
+    allow_download: bool = False
+    device: str = "cpu"
+    depth_model: HubModel = field(default_factory=lambda: HubModel("depth-anything/Depth-Anything-V2-Small-hf"))
+    working_size: int = 518
+    inverse_shift: float = 0.05
+    normals: bool = True
+
+    def __post_init__(self):
+        if self.model not in PRIORS_MODELS:
+            raise ConfigError(f"priors.model = {self.model!r}: unknown (known: {list(PRIORS_MODELS)})")
+        if self.inverse_shift <= 0:
+            raise ConfigError(f"priors.inverse_shift = {self.inverse_shift}: must be > 0")
+
+
+@dataclass(frozen=True)
+class DetectorTrainConfig:
+    """The built-in detector's fit (conf/detector/): every ``frame_every``-th view of the train
+    split's kitchens ``kitchens`` rendered at ``working_size`` on the long side, labelled from the
+    renderer's segmentation (background, front, a front's ``edge_px`` border, handle, object);
+    ``steps`` of Adam at ``lr`` on random ``crop`` crops, ``batch`` at a time; scored on the test
+    split's kitchens ``eval_kitchens`` (never trained or tuned on)."""
+
+    kitchens: list[int] = field(default_factory=lambda: list(range(16)))
+    eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
+    frame_every: int = 4
+    working_size: int = 256
+    edge_px: int = 2
+    width: int = 16
+    steps: int = 1500
+    batch: int = 12
+    crop: int = 128
+    lr: float = 3e-3
+    log_every: int = 100
+    iou_match: float = 0.5
+
+    def __post_init__(self):
+        if not self.kitchens:
+            raise ConfigError("detector.kitchens: at least one train kitchen is needed")
+        if self.crop > self.working_size:
+            raise ConfigError(f"detector.crop = {self.crop} exceeds detector.working_size = {self.working_size}")

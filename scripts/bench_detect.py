@@ -1,0 +1,153 @@
+#!/usr/bin/env python
+"""Parts from each source of 2D detections, on benchmark kitchens: every kitchen of a split is
+built as the benchmark builds it (simulated RGB-D and detections whose failures persist across
+views, the TSDF geometry), then for each ``--detect`` model its ``detect`` stage runs and
+decompose and articulate (with the prior decision weights, the same for every model) read that:
+``capture`` (the simulated detector), ``builtin`` (the detector the ``detector`` stage trained,
+which never sees the capture's detections) and ``none`` (the geometric path). Scored against the
+ground truth: precision, recall and EA-score (docs/formats.md#articulation-precision-and-recall),
+and the detections' own 2D precision / recall against the parts.
+
+    python scripts/bench_detect.py --split test --jobs 2
+    python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
+
+Writes ``<out>/<split>/summary.json``; each kitchen's folders stay under ``<out>`` (a rerun
+scores again without rebuilding the capture and geometry). Simulated input: rendered RGB-D.
+"""
+
+import argparse
+import json
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+
+import drawer_lib  # noqa: F401  (before torch: the OpenMP policy)
+from drawer_lib.articulation.config import ArticulateConfig
+from drawer_lib.articulation.pipeline import run_articulate
+from drawer_lib.bench.evaluate import score_kitchen
+from drawer_lib.bench.scenes import kitchen_scene
+from drawer_lib.capture.build import build_capture
+from drawer_lib.capture.config import CaptureConfig
+from drawer_lib.config.compose import compose_config
+from drawer_lib.config.typed import to_typed
+from drawer_lib.detect.config import DetectConfig
+from drawer_lib.detect.pipeline import run_detect
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.images import read_json
+from drawer_lib.io.overlay import apply_overlay
+from drawer_lib.mesh.config import MeshConfig
+from drawer_lib.mesh.pipeline import run_mesh
+from drawer_lib.paths import BenchPaths, ScenePaths
+from drawer_lib.perception.config import DecomposeConfig
+from drawer_lib.perception.pipeline import run_decompose
+from drawer_lib.runner import stage_run
+from drawer_lib.sdf.config import SdfConfig
+from drawer_lib.sdf.io import load_field
+from drawer_lib.sdf.pipeline import run_sdf
+
+ROOT = Path(__file__).resolve().parent.parent
+OVERRIDES = ["scene=kitchen_small", "capture/detections=persistent", "capture/depth=sensor", "sdf=tsdf"]
+
+
+def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path) -> dict:
+    import torch
+
+    torch.set_num_threads(1)
+    cfg = compose_config(ROOT / "conf", OVERRIDES)
+    base = OmegaConf.to_container(cfg.scene, resolve=True)
+    scene = kitchen_scene(base, split, k)
+    sp = ScenePaths(out / split, f"kitchen_{k}")
+    seed = 1000 * (split == "test") + k
+    if not (sp.metrics("mesh")).is_file():
+        with stage_run("capture", sp.capture, seed) as r:
+            build_capture(f"{split}_{k}", scene, to_typed(CaptureConfig, cfg.capture, "capture"), r.dir, r.rng, ROOT)
+        cap = load_capture(sp.capture, check_files=False)
+        with stage_run("sdf", sp.stage_dir("sdf"), seed) as r:
+            r.metrics.update(run_sdf(to_typed(SdfConfig, cfg.sdf, "sdf"), cap, r))
+        with stage_run("mesh", sp.stage_dir("mesh"), seed) as r:
+            r.metrics.update(run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(sp.field), cap, r))
+    cap = load_capture(sp.capture, check_files=False)
+    ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
+    row = {"kitchen": k}
+    for model in models:
+        v = ScenePaths(sp.root / "by_detector", model)
+        t0 = time.perf_counter()
+        with stage_run("detect", v.detect, seed) as r:
+            r.metrics.update(run_detect(DetectConfig(model=model), cap, weights, r))
+        vcap = apply_overlay(cap, v.file("detect", "index"))
+        with stage_run("decompose", v.stage_dir("decompose"), seed) as r:
+            r.metrics.update(run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), vcap, sp.mesh, r))
+        with stage_run("articulate", v.stage_dir("articulate"), seed) as r:
+            r.metrics.update(run_articulate(ac, vcap, v.stage_dir("decompose"), r, weights=ac.types.prior))
+        s = score_kitchen(sp, v.parts)
+        dm = read_json(v.metrics("detect"))
+        row[model] = {"precision": s["precision"], "recall": s["recall"], "ea_score": s.get("ea_score"),
+                      "n_pred": s["n_pred"] - s["n_ignored"], "n_gt": s["n_gt"], "n_correct": s["n_correct"],
+                      "parts_2d_precision": dm.get("parts_2d_precision"), "parts_2d_recall": dm.get("parts_2d_recall"),
+                      "source": read_json(v.metrics("decompose"))["source"], "s": round(time.perf_counter() - t0, 1)}
+    return row
+
+
+def summarise(rows: list[dict], models: list[str]) -> dict:
+    out = {}
+    for m in models:
+        rs = [r[m] for r in rows]
+        corr, pred, gt = (sum(r[k] for r in rs) for k in ("n_correct", "n_pred", "n_gt"))
+        eas = [r["ea_score"] for r in rs if r["ea_score"] is not None]
+        p2 = [r["parts_2d_precision"] for r in rs if r["parts_2d_precision"] is not None]
+        r2 = [r["parts_2d_recall"] for r in rs if r["parts_2d_recall"] is not None]
+        out[m] = {"precision_pooled": corr / pred if pred else None, "recall_pooled": corr / gt if gt else None,
+                  "precision_mean": float(np.mean([r["precision"] for r in rs if r["precision"] is not None])),
+                  "recall_mean": float(np.mean([r["recall"] for r in rs])),
+                  "precision_worst": float(min(r["precision"] if r["precision"] is not None else 0.0 for r in rs)),
+                  "recall_worst": float(min(r["recall"] for r in rs)),
+                  "ea_score_mean": float(np.mean(eas)) if eas else None,
+                  "n_pred": pred, "n_gt": gt, "n_correct": corr,
+                  "parts_2d_precision_mean": float(np.mean(p2)) if p2 else None,
+                  "parts_2d_recall_mean": float(np.mean(r2)) if r2 else None}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--split", default="test", choices=["train", "test"])
+    ap.add_argument("--kitchens", type=int, nargs="+", default=list(range(20)))
+    ap.add_argument("--detect", nargs="+", default=["capture", "builtin", "none"])
+    ap.add_argument("--weights", type=Path, default=BenchPaths(ROOT / "bench").detector_weights,
+                    help="the built-in detector's weights (the detector stage's output)")
+    ap.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2)))
+    ap.add_argument("--out", type=Path, default=Path("/tmp/bench_detect"))
+    a = ap.parse_args()
+    if "builtin" in a.detect and not a.weights.is_file():
+        raise SystemExit(f"error: {a.weights}: the built-in detector's weights are missing (run `dvc repro detector`)")
+    with ProcessPoolExecutor(a.jobs) as ex:
+        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve()) for k in a.kitchens]
+        rows = []
+        for f in futs:
+            row = f.result()
+            rows.append(row)
+            print(f"{a.split} {row['kitchen']:2d}: " + "   ".join(
+                f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
+                f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
+    summ = {"split": a.split, "kitchens": a.kitchens, "weights": "prior", "by_model": summarise(rows, a.detect), "rows": rows}
+    (a.out / a.split).mkdir(parents=True, exist_ok=True)
+    (a.out / a.split / "summary.json").write_text(json.dumps(summ, indent=2))
+
+    def f(x):
+        return "–" if x is None else f"{x:.2f}"
+
+    print(f"\n| {a.split} ({len(rows)} kitchens) | precision (pooled / mean / worst) | recall (pooled / mean / worst) "
+          "| EA-score | parts found | 2D masks: precision / recall |\n|---|---|---|---|---|---|")
+    for m, s in summ["by_model"].items():
+        print(f"| {m} | {f(s['precision_pooled'])} / {f(s['precision_mean'])} / {f(s['precision_worst'])} | "
+              f"{f(s['recall_pooled'])} / {f(s['recall_mean'])} / {f(s['recall_worst'])} | {f(s['ea_score_mean'])} | "
+              f"{s['n_correct']}/{s['n_gt']} ({s['n_pred']} predicted) | "
+              f"{f(s['parts_2d_precision_mean'])} / {f(s['parts_2d_recall_mean'])} |")
+
+
+if __name__ == "__main__":
+    main()

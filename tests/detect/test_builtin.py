@@ -1,0 +1,147 @@
+"""The built-in detector: instance decoding and painting against hand-made probability maps,
+the network's shapes, its weights file, its fit on a tiny analytic dataset, the 2D matching,
+and the detector and detect stages end to end (a few steps on one train kitchen)."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+from helpers import run_stage, scene_paths
+
+from drawer_lib.detect.builtin import (
+    CLASSES,
+    EDGE,
+    FRONT,
+    HANDLE,
+    OBJECT,
+    TinyUNet,
+    decode_instances,
+    load_detector,
+    resize_mask,
+    save_detector,
+)
+from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
+from drawer_lib.detect.masks import Detection, paint_detections
+from drawer_lib.detect.train import Sample, fit_detector, pixel_accuracy
+from drawer_lib.errors import InputError
+from drawer_lib.io.capture import load_capture
+from drawer_lib.io.overlay import apply_overlay
+from drawer_lib.metrics.detections import match_fronts
+
+
+def _probs(cls: np.ndarray) -> np.ndarray:
+    p = np.full((len(CLASSES), *cls.shape), 0.02, np.float32)
+    for c in range(len(CLASSES)):
+        p[c][cls == c] = 0.92
+    return p
+
+
+def test_two_fronts_apart_by_an_edge_a_handle_and_an_object():
+    cls = np.zeros((40, 60), np.int64)
+    cls[5:35, 5:29] = FRONT
+    cls[5:35, 31:55] = FRONT
+    cls[5:35, 29:31] = EDGE  # the gap between them
+    cls[5:35, [4, 55]] = EDGE
+    cls[18:22, 40:48] = HANDLE
+    cls[37:40, 0:20] = OBJECT
+    cls[1:3, 1:3] = FRONT  # too small
+    dets = decode_instances(_probs(cls), BuiltinDetectConfig(min_area_px=20, min_score=0.5, erode_px=1, min_seed_px=5))
+    fronts = sorted((d for d in dets if d.label == "front"), key=lambda d: d.mask.nonzero()[1].min())
+    assert len(fronts) == 2
+    assert fronts[0].mask[5:35, 4:29].all() and not fronts[0].mask[:, 31:].any()  # flooded over its own edge
+    assert not fronts[1].mask[18:22, 40:48].any()  # its handle is a detection of its own
+    assert [d.label for d in dets if d.label != "front"] == ["handle", "object"]
+    assert all(0.5 < d.score <= 1 for d in dets)
+    assert decode_instances(_probs(np.zeros((8, 8), np.int64)), BuiltinDetectConfig()) == []  # empty image
+
+
+def test_painting_keeps_handles_on_top_and_ids_local():
+    big = np.zeros((10, 10), bool)
+    big[1:9, 1:9] = True
+    small = np.zeros_like(big)
+    small[4:6, 4:6] = True
+    hidden = np.zeros_like(big)
+    hidden[2:4, 2:4] = True  # wholly under nothing: painted before big? no, smaller: on top
+    lab, rows = paint_detections([Detection(small, "handle", 0.9), Detection(big, "front", 0.8)], big.shape)
+    assert rows == [{"id": 1, "label": "front", "score": 0.8}, {"id": 2, "label": "handle", "score": 0.9}]
+    assert (lab[4:6, 4:6] == 2).all() and (lab[big & ~small] == 1).all() and lab.dtype == np.uint16
+    lab, rows = paint_detections([Detection(big, "front", 0.8), Detection(big.copy(), "door", 0.7)], big.shape)
+    assert len(rows) == 1 and sorted(np.unique(lab).tolist()) == [0, 1]  # a mask wholly painted over is dropped
+    assert paint_detections([], (3, 4))[0].shape == (3, 4)
+
+
+def test_network_shapes_weights_file_and_resize(tmp_path):
+    m = TinyUNet(8)
+    for h, w in ((37, 53), (8, 8), (1, 9)):
+        assert m(torch.zeros(2, 3, h, w)).shape == (2, len(CLASSES), h, w)
+    save_detector(tmp_path / "w.pt", m, {"note": 1})
+    m2, info = load_detector(tmp_path / "w.pt")
+    x = torch.randn(1, 3, 16, 20)
+    assert torch.equal(m.eval()(x), m2(x)) and info == {"note": 1}
+    torch.save({"kind": "other"}, tmp_path / "bad.pt")
+    with pytest.raises(InputError, match="not the built-in detector"):
+        load_detector(tmp_path / "bad.pt")
+    with pytest.raises(InputError, match="dvc repro detector"):
+        load_detector(tmp_path / "none.pt")
+    a = np.zeros((4, 6), bool)
+    a[1, 2] = True
+    assert resize_mask(a, 8, 12)[2:4, 4:6].all() and resize_mask(a, 8, 12).sum() == 4
+
+
+def test_fit_learns_rectangles_on_a_flat_background():
+    """Bright rectangles (fronts) with a dark one-pixel rim (edges) on grey: a few hundred steps
+    separate them far beyond the majority class's share."""
+    g = np.random.default_rng(0)
+    samples = []
+    for _ in range(6):
+        y = np.zeros((48, 48), np.int64)
+        x = np.full((3, 48, 48), -0.5, np.float32)
+        for _ in range(2):
+            i, j = g.integers(2, 28, 2)
+            y[i:i + 16, j:j + 16] = EDGE
+            y[i + 1:i + 15, j + 1:j + 15] = FRONT
+        x[:, y == FRONT] = 1.0
+        x[:, y == EDGE] = -1.5
+        samples.append(Sample(torch.as_tensor(x), torch.as_tensor(y)))
+    cfg = DetectorTrainConfig(width=8, steps=150, batch=4, crop=32, lr=1e-2, log_every=50)
+    model, losses = fit_detector(samples, cfg, seed=0)
+    assert len(losses) == 3 and losses[-1] < losses[0]
+    base = max(float((s.y == FRONT).float().mean()) for s in samples)
+    assert pixel_accuracy(model, samples) > max(0.9, base)
+
+
+def test_match_fronts_counts_each_true_front_once():
+    t = np.zeros((10, 20), np.int64)
+    t[:, :10], t[:, 10:] = 1, 2
+    t[0, 0] = 3  # a one-pixel part: not counted
+    a, b = t == 1, t == 2
+    half = np.zeros_like(a)
+    half[:, 10:13] = True
+    assert match_fronts([a, b], t, 2, 0.5) == (2, 2, 2)
+    assert match_fronts([a, a.copy()], t, 2, 0.5) == (1, 2, 2)  # the duplicate is a false positive
+    assert match_fronts([half], t, 2, 0.5) == (0, 1, 2)  # IoU 0.3
+    assert match_fronts([], t, 2, 0.5) == (0, 0, 2)
+
+
+def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
+    short = ["detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=6", "detector.log_every=3",
+             "detector.frame_every=16", "detector.crop=64"]
+    r = run_stage("detector", tmp_path, *short)
+    assert r.returncode == 0, r.stderr[-3000:]
+    d = tmp_path / "bench" / "detector"
+    m = json.loads((d / "metrics.json").read_text())
+    assert m["train_views"] == 3 and m["test_views"] == 3 and m["wall_s"] > 0
+    assert {"fronts_2d_precision_test", "fronts_2d_recall_test", "pixel_accuracy_test"} <= set(m)
+    assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,loss"
+    sp = scene_paths(tmp_path)
+    shutil.copytree(exact_capture[0], sp.capture)
+    r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.builtin.min_score=0.0", "detect.builtin.min_area_px=1")
+    assert r.returncode == 0, r.stderr[-3000:]
+    cap = apply_overlay(load_capture(sp.capture), sp.file("detect", "index"))
+    for i in range(len(cap.frames)):
+        lab, rows = cap.detections(i)
+        assert sorted(np.unique(lab[lab > 0]).tolist()) == [r["id"] for r in rows]
+        assert {r["label"] for r in rows} <= {"front", "handle", "object"}
+    assert json.loads(sp.metrics("detect").read_text())["model"] == "builtin"
