@@ -74,7 +74,8 @@ class _Resampler:
 
     def u16(self, i: int, src: Path, dst: Path) -> None:
         if self.maps(i) is None:
-            shutil.copy2(src, dst)
+            if src.resolve() != dst.resolve():  # (instance maps are resampled in place)
+                shutil.copy2(src, dst)
         else:
             write_u16(dst, self._map(i, read_u16(src), nearest=True))
 

@@ -19,54 +19,18 @@ from drawer_lib.errors import CaptureError, ConfigError
 from drawer_lib.geometry.distortion import remap, undistortion_map
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.manifest import read_manifest
+from drawer_lib.synth import phone
 
 S = 4  # the LiDAR map is 1 / S of the RGB's size (256 x 192 beside 1024 x 768)
 DRIFT = 0.996  # odd frames' focal length, relative to the even frames'
 
 
 def lidar(depth: np.ndarray) -> np.ndarray:
-    """The sensor's map of a depth [H, W]: one sample per S x S cell, the mean of its central
-    2 x 2 pixels (the cell's centre; a sample straddling a depth edge mixes the two, as real
-    time-of-flight pixels do, and its confidence is low)."""
-    c = S // 2
-    return (depth[c - 1::S, c - 1::S] + depth[c - 1::S, c::S] + depth[c::S, c - 1::S] + depth[c::S, c::S]) / 4
+    return phone.lidar(depth, S)
 
 
 def write_polycam(src, out, confidence: bool = True) -> None:
-    """The capture at ``src`` written as ns-process-data writes a Polycam capture (module doc)."""
-    cap = load_capture(src)
-    it = cap.intrinsics
-    for d in ("images", "depth", "confidence"):
-        (out / d).mkdir(parents=True)
-    frames = []
-    for k, fr in enumerate(cap.frames):
-        if k % 7 == 3:  # frames ns-process-data dropped as blurry: gaps in the numbering
-            continue
-        n = f"frame_{k + 1:05d}"
-        img, dep = cap.image(k), cap.depth(k)
-        if k % 2:  # seen through the frame's own camera (a slightly wider view)
-            own = dataclasses.replace(it, fx=it.fx * DRIFT, fy=it.fy * DRIFT)
-            rows, cols = undistortion_map(it, own)
-            img, dep = remap(img, rows, cols), remap(dep, rows, cols, nearest=True)
-        Image.fromarray(img).save(out / f"images/{n}.jpg", quality=95)
-        z = lidar(dep)
-        Image.fromarray(np.round(z * 1000).astype(np.uint16)).save(out / f"depth/{n}.png")
-        f = {"fl_x": it.fx * (DRIFT if k % 2 else 1.0), "fl_y": it.fy * (DRIFT if k % 2 else 1.0),
-             "cx": it.cx, "cy": it.cy, "w": it.width, "h": it.height,
-             "file_path": f"./images/{n}.jpg", "depth_file_path": f"./depth/{n}.png",
-             "transform_matrix": np.asarray(fr.c2w_gl).tolist()}
-        if confidence:
-            # low where the depth jumps within a cell's neighbourhood (ARKit's low-confidence edges), medium on a stripe
-            jump = np.zeros(z.shape, bool)
-            jump[:, 1:] |= np.abs(np.diff(z, axis=1)) > 0.1
-            jump[1:, :] |= np.abs(np.diff(z, axis=0)) > 0.1
-            c = np.where(jump, 0, 255).astype(np.uint8)
-            c[:, 0] = np.where(jump[:, 0], 0, 127)
-            Image.fromarray(c).save(out / f"confidence/{n}.png")
-            f["confidence_file_path"] = f"./confidence/{n}.png"
-        frames.append(f)
-    (out / "transforms.json").write_text(json.dumps({"camera_model": "OPENCV", "orientation_override": "none",
-                                                     "frames": frames}, indent=2))
+    phone.write_polycam(src, out, S, DRIFT, confidence=confidence)
 
 
 @pytest.fixture(scope="module")
@@ -92,6 +56,9 @@ def test_a_polycam_capture_imports_with_its_depth_at_the_rgbs_size(polycam, exac
     assert not cap.per_frame_cameras and (cap.intrinsics.width, cap.intrinsics.height) == (96, 72)
     m = read_manifest(tmp_path / "c" / "manifest.json")
     assert m.has["depth"] and m.world_frame["metric_scale"] and m.world_frame["gravity"]
+    # the ground truth under the phone's frame names, its instance maps resampled with the frames
+    assert m.has["gt"] and sorted(p.stem for p in (tmp_path / "c" / "gt" / "instances").glob("*.png")) == sorted(
+        f.stem for f in cap.frames)
     dep = m.details["depth"]
     assert dep["source_size"] == [24, 18] and dep["frames_upsampled"] == len(cap.frames)
     assert dep["upsample"] == "edge_aware" and dep["min_confidence"] == 1 and 0 < dep["low_confidence_fraction"] < 0.3
