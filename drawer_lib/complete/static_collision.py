@@ -418,13 +418,17 @@ def static_collision(mesh: trimesh.Trimesh, cfg: StaticCollisionConfig, field=No
 
 def union_mesh(shapes: Sequence[Shape]) -> trimesh.Trimesh:
     """The boundary of the union of the shapes' solids (boxes; meshes as their convex hulls) as
-    one closed mesh (manifold3d boolean union): shared and inner faces are gone."""
+    one closed mesh (manifold3d boolean union): shared and inner faces are gone. A solid that
+    encloses no volume (the hull of points on one plane) joins as its surface, unmerged."""
     if not shapes:
         raise InputError("union_mesh: no shapes")
     solids = [trimesh.Trimesh(*s.solid(), process=False) for s in shapes]
-    if len(solids) == 1:
-        return solids[0]
-    return trimesh.boolean.union(solids, engine="manifold")
+    vol = [m for m in solids if m.is_volume]
+    flat = [m for m in solids if not m.is_volume]
+    if len(vol) > 1:
+        vol = [trimesh.boolean.union(vol, engine="manifold")]
+    parts = vol + flat
+    return parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
 
 
 def collision_fidelity(shapes: Sequence[Shape], mesh: trimesh.Trimesh, n_points: int = 20_000, seed: int = 0,

@@ -116,7 +116,7 @@ class DetectorTrainConfig:
     working_size: int = 256
     edge_px: int = 2
     width: int = 16
-    steps: int = 1500
+    steps: int = 3000
     batch: int = 12
     crop: int = 128
     lr: float = 3e-3

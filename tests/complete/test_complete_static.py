@@ -246,3 +246,22 @@ def test_skins_keep_the_counter_above_a_carved_cavity():
     # with skins on, the stage's boxes include them
     sc2 = static_collision(mesh, StaticCollisionConfig(source="mesh", cell=0.04), carvers=[cavity])
     assert sc2.stats["n_skins"] == len(skins) and len(sc2.shapes) == len(sc.shapes) + len(skins)
+
+
+def test_union_keeps_a_solid_without_volume_as_its_surface():
+    """A hull that qhull's clean-up left open (a 1 cm sliver seen by a real capture) cannot go
+    through the boolean union: it joins the union's surface as it is."""
+    from drawer_lib.bodies import Shape
+    from drawer_lib.complete.static_collision import union_mesh
+
+    a, b = box_shape([0.0, 0.0, 0.5], [0.5, 0.25, 0.5]), box_shape([0.4, 0.0, 0.5], [0.5, 0.25, 0.5])
+    c = box_shape([3.0, 0.0, 0.5], [0.1, 0.1, 0.1])
+    v, f = c.triangles()
+
+    class Open(Shape):  # a solid with one triangle missing
+        def solid(self):
+            return v, f[:-1]
+
+    u = union_mesh([a, b, Open("box", box=c.box)])
+    assert not u.is_volume and len(u.faces) == len(union_mesh([a, b]).faces) + len(f) - 1
+    assert union_mesh([a, b]).is_volume and union_mesh([a, b]).volume == pytest.approx(1.4 * 0.5 * 1.0)
