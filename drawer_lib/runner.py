@@ -57,11 +57,24 @@ def thread_cap() -> int:
         return os.cpu_count() or 1
 
 
+def _own_peak_kib() -> int:
+    """This process's own peak resident memory (KiB): Linux's ``VmHWM``, which starts afresh at
+    exec. (``ru_maxrss`` keeps the peak of the process that forked it: a stage started by a
+    large parent would report the parent's memory.)"""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
 def peak_rss_mb() -> float:
     """Peak resident memory of this process and of its waited-for children, in MiB."""
-    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    return max(own, kids) / 1024.0  # ru_maxrss is in KiB on Linux
+    return max(_own_peak_kib(), kids) / 1024.0  # KiB on Linux
 
 
 class Curve:

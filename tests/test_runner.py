@@ -128,3 +128,17 @@ def test_thread_cap_reads_the_environment(monkeypatch):
     assert thread_cap() == (os.cpu_count() or 1)
     monkeypatch.delenv("OMP_NUM_THREADS")
     assert thread_cap() == (os.cpu_count() or 1)
+
+
+def test_peak_memory_is_the_stages_own_not_its_parents():
+    """A stage started by a large process (a benchmark script that rendered first) reports its
+    own peak: ru_maxrss would carry the parent's over the fork."""
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    big = np.ones(400 * 2**20 // 8)  # 400 MiB resident in this process
+    code = "from drawer_lib.runner import peak_rss_mb; print(peak_rss_mb())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert float(out) < 300 and big.sum() > 0
