@@ -9,7 +9,7 @@ estimate of log(scale) with a standard deviation, fused by inverse variance:
   ``counter_window`` of the cameras' height above the floor. Kitchen worktops stand
   ``counter_height_m`` = 0.91 m above the floor (0.90-0.92 m in Europe, 36 in in the US);
   ``counter_sigma`` = 0.12 was chosen on the benchmark's train split, whose worktops stand
-  0.66-1.05 m, so the cue is trusted no more than a kitchen of unusual height allows. A user
+  0.70-1.09 m, so the cue is trusted no more than a kitchen of unusual height allows. A user
   who measured theirs gives it (``video.counter_height_m``), and the cue is then as sure as the
   peaks are sharp. SfM finds few points on a plain worktop: the peak is not always there.
 * ``camera``: the cameras' height above the floor: a phone held while walking, ``camera_height_m``
