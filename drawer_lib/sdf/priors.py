@@ -1,9 +1,11 @@
 """Monocular depth and normal priors: an interface chosen by config, with the built-in
-implementation that uses what the capture provides.
+implementation that uses what the capture provides (after the ``priors`` stage, whose output the
+SDF stage reads in place of the capture's own files: Depth Anything runs there,
+``priors.model=depth_anything``).
 
-DRAWER runs Marigold (depth, normals) on every frame. Such models need weights that cannot be
-fetched here, so the named slots below raise a clear error instead of pretending to run; a user
-with weights registers an implementation with :func:`register_estimator` and selects it with
+DRAWER runs Marigold (depth, normals) on every frame. Its weights cannot be fetched here, so the
+named slots below raise a clear error instead of pretending to run; a user with weights
+registers an implementation with :func:`register_estimator` and selects it with
 ``sdf.neural.priors.estimator: <name>``.
 """
 
@@ -50,7 +52,6 @@ _REGISTRY: dict[str, Callable[[Capture], MonoEstimator]] = {"capture": CapturePr
 _SLOTS = {
     "marigold": "Marigold depth/normals (diffusion; HF GonzaloMG/marigold-e2e-ft-*)",
     "dsine": "DSINE normals",
-    "depth_anything": "Depth Anything",
 }
 
 
@@ -62,6 +63,9 @@ def register_estimator(name: str, factory: Callable[[Capture], MonoEstimator]) -
 def make_estimator(name: str, cap: Capture) -> MonoEstimator:
     if name in _REGISTRY:
         return _REGISTRY[name](cap)
+    if name == "depth_anything":
+        raise ConfigError("priors.estimator = 'depth_anything': Depth Anything runs in the priors stage; set "
+                          "priors.model=depth_anything and keep sdf.neural.priors.estimator=capture (which reads its maps)")
     if name in _SLOTS:
         raise ConfigError(
             f"priors.estimator = {name!r}: {_SLOTS[name]} needs model weights that are not available on this "
