@@ -79,11 +79,12 @@ def stage(tree: Path, module: str, overrides: list[str], threads: int) -> float:
 
 
 def scratch_scene(base: Path, links: list[str]) -> Path:
-    """``base/<scene>`` with symlinks to the workspace's ``out/<scene>/<name>`` for ``links``."""
+    """``base/<scene>`` with symlinks to the workspace's ``out/<scene>/<name>`` for ``links``
+    (those the workspace has)."""
     d = base / SCENE
     d.mkdir(parents=True, exist_ok=True)
     for name in links:
-        if not (d / name).exists():
+        if not (d / name).exists() and (ROOT / "out" / SCENE / name).exists():
             (d / name).symlink_to(ROOT / "out" / SCENE / name)
     return base
 
@@ -153,7 +154,7 @@ def _time_to(curve: Path, key: str = "fscore_2cm", level: float = 0.95) -> tuple
 def fig_sdf(trees: dict, threads: int, tmp: Path, steps: int = 400) -> None:
     res = {}
     for k, tree in trees.items():
-        out = scratch_scene(tmp / f"sdf_{k}", ["capture"])
+        out = scratch_scene(tmp / f"sdf_{k}", ["capture", "priors"])  # (the reference commit reads no priors/)
         wall = stage(tree, "stages.sdf", [f"paths.out={out}", f"sdf.neural.steps={steps}", "sdf.neural.eval_every=50"],
                      threads)
         res[k] = (*_time_to(out / SCENE / "sdf" / "curve.csv"), wall)
@@ -166,6 +167,7 @@ def fig_sdf4x(trees: dict, threads: int, tmp: Path) -> None:
     cam = ["scene.synth.camera.width=400", "scene.synth.camera.height=300"]
     if not (out / SCENE / "capture" / "transforms.json").is_file():
         stage(ROOT, "stages.capture", [f"paths.out={out}", *cam], threads)
+        stage(ROOT, "stages.priors", [f"paths.out={out}", *cam], threads)
     wall = stage(ROOT, "stages.sdf", [f"paths.out={out}", *cam, "sdf.neural.eval_every=50"], threads)
     t, step = _time_to(out / SCENE / "sdf" / "curve.csv")
     m = json.loads((out / SCENE / "sdf" / "metrics.json").read_text())

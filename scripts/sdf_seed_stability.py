@@ -43,7 +43,8 @@ def rebuild(scene: str, seed: int, threads: int, work: Path, out: Path, reuse: b
         if root.exists():
             shutil.rmtree(root)
         dst.root.mkdir(parents=True)
-        (dst.root / src.capture.name).symlink_to(src.capture.resolve())
+        for d in (src.capture, src.detect, src.priors):  # the capture and what detect and priors give it
+            (dst.root / d.name).symlink_to(d.resolve())
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads),
            "NUMBA_NUM_THREADS": str(threads)}
     for st in stages:

@@ -45,8 +45,9 @@ VARIANTS = {
 def run_stage(out: Path, overrides: list[str], threads: int, stage: str = "sdf") -> float:
     """The ``sdf`` (or ``mesh``) stage into ``out`` (the capture linked from out/); its wall seconds."""
     (out / SCENE).mkdir(parents=True, exist_ok=True)
-    if not (out / SCENE / "capture").exists():
-        (out / SCENE / "capture").symlink_to(ROOT / "out" / SCENE / "capture")
+    for d in ("capture", "priors"):  # the capture and the monocular maps the sdf stage reads
+        if not (out / SCENE / d).exists():
+            (out / SCENE / d).symlink_to(ROOT / "out" / SCENE / d)
     t = str(threads)
     env = {**os.environ, "OMP_NUM_THREADS": t, "MKL_NUM_THREADS": t, "NUMBA_NUM_THREADS": t, "PYTHONPATH": str(ROOT)}
     t0 = time.perf_counter()

@@ -74,6 +74,7 @@ def test_training_stage_twice_gives_identical_outputs(captures, tmp_path):
     for k in ("x", "y"):
         out = tmp_path / k
         shutil.copytree(captures["a"] / "capture", out / "kitchen_tiny" / "capture")
+        _run("priors", out, 1)  # the monocular maps the sdf stage reads
         _run("sdf", out, 1, *fast)
         digests.append(_digest(out / "kitchen_tiny" / "sdf"))
     assert "field.pt" in digests[0] and "curve.csv" in digests[0]

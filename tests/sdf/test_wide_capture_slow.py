@@ -31,6 +31,7 @@ def test_default_schedule_meets_the_targets_on_a_capture_4x_kitchen_small(tmp_pa
     assert wide.width * wide.height * FRAMES >= 4 * small.width * small.height * small.n_frames
     out = tmp_path / "out"
     run("capture", out, "capture/depth=exact", f"scene.synth.camera.n_frames={FRAMES}")
+    run("priors", out)
     run("sdf", out, "sdf.neural.eval_every=100000")  # the quick probe at the end only
     run("mesh", out)
     sp = ScenePaths(out, "kitchen_wide")
