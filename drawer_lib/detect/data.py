@@ -30,7 +30,7 @@ def view_classes(ent: np.ndarray, handle: np.ndarray, kind_of: np.ndarray, edge_
 
     >>> ent = np.array([[0, 1, 1, 2, 2]]); kinds = np.array([0, 1, 1])
     >>> view_classes(ent, np.zeros_like(ent, bool), kinds, 1).tolist()
-    [[0, 2, 2, 2, 2]]
+    [[0, 2, 2, 2, 1]]
     """
     k = np.where(ent >= 0, kind_of[np.maximum(ent, 0)], 0)
     out = np.full(ent.shape, BG, np.uint8)

@@ -78,5 +78,5 @@ def write_polycam(src: Path, out: Path, factor: int = 4, drift: float = 0.996, d
             Image.fromarray(c).save(out / f"confidence/{n}.png")
             f["confidence_file_path"] = f"./confidence/{n}.png"
         frames.append(f)
-    (out / "transforms.json").write_text(json.dumps({"camera_model": "OPENCV", "orientation_override": "none",
+    (out / capture_name("transforms")).write_text(json.dumps({"camera_model": "OPENCV", "orientation_override": "none",
                                                      "frames": frames}, indent=2))
