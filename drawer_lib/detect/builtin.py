@@ -34,7 +34,7 @@ def _block(cin: int, cout: int) -> nn.Sequential:
 
 class TinyUNet(nn.Module):
     """[B, 3, H, W] normalised RGB -> [B, len(CLASSES), H, W] logits. Widths w, 2w, 4w, 4w;
-    H and W need not be multiples of 8 (the skips are cropped to match)."""
+    H and W need not be multiples of 8 (each coarser map is resized to its skip's size)."""
 
     def __init__(self, width: int = 16, n_classes: int = len(CLASSES)):
         super().__init__()
@@ -160,8 +160,6 @@ def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:
 
 class BuiltinDetector:
     """The trained network with its decoding, as the ``detect`` stage runs it."""
-
-    name = "builtin"
 
     def __init__(self, weights: Path, cfg: BuiltinDetectConfig):
         self.model, self.info = load_detector(weights)

@@ -9,7 +9,7 @@ import numpy as np
 from scipy import ndimage
 
 from drawer_lib.detect.builtin import BG, EDGE, FRONT, HANDLE, OBJECT
-from drawer_lib.geometry.camera import Intrinsics
+from drawer_lib.geometry.camera import Intrinsics, opencv_to_opengl
 from drawer_lib.synth.camera_path import camera_path
 from drawer_lib.synth.config import RenderConfig, SynthConfig
 from drawer_lib.synth.layout import sample_layout
@@ -52,8 +52,6 @@ def render_views(synth: SynthConfig, render: RenderConfig, frames: list[int], ed
     km = build_model(layout, intr, render)
     poses = camera_path(layout, cc, np.random.default_rng([synth.seed, 2]))
     kind_of = np.array([0 if e.family == "static" else 2 if e.family == "object" else 1 for e in layout.entities])
-    from drawer_lib.geometry.camera import opencv_to_opengl
-
     renderer = KitchenRenderer(km, intr)
     try:
         for k in frames:

@@ -45,8 +45,6 @@ def box_nms(boxes: np.ndarray, scores: np.ndarray, iou: float) -> list[int]:
 class OwlSamDetector:
     """OWLv2 boxes for every prompt of ``detect.foundation.prompts``, SAM's mask in each box."""
 
-    name = "owlv2_sam"
-
     def __init__(self, cfg: DetectConfig):
         from transformers import Owlv2ForObjectDetection, Owlv2Processor, SamModel, SamProcessor
 
@@ -104,8 +102,6 @@ class OwlSamDetector:
 class DepthAnythingPriors:
     """Depth Anything (any ``transformers`` depth-estimation model): relative or metric depth,
     and the normals of that depth."""
-
-    name = "depth_anything"
 
     def __init__(self, cfg: PriorsConfig):
         from transformers import AutoImageProcessor, AutoModelForDepthEstimation

@@ -24,5 +24,5 @@ def model_dir(m: HubModel, allow_download: bool, key: str) -> Path:
         return Path(snapshot_download(m.repo, revision=m.revision, local_files_only=not allow_download))
     except LocalEntryNotFoundError:
         raise InputError(f"{key}.repo = {m.repo}: not in the Hugging Face cache; fetch it with `hf download "
-                         f"{m.repo}` (or set {key.rsplit('.', 1)[0]}.allow_download=true, or {key}.path to a "
+                         f"{m.repo}` (or set {key.split('.', 1)[0]}.allow_download=true, or {key}.path to a "
                          "local copy)") from None
