@@ -2,14 +2,22 @@
 """Parts from each source of 2D detections, on benchmark kitchens: every kitchen of a split is
 built as the benchmark builds it (simulated RGB-D and detections whose failures persist across
 views, the TSDF geometry), then for each ``--detect`` model its ``detect`` stage runs and
-decompose and articulate (with the prior decision weights, the same for every model) read that:
+decompose and articulate read that:
 ``capture`` (the simulated detector), ``builtin`` (the detector the ``detector`` stage trained,
 which never sees the capture's detections) and ``none`` (the geometric path). Scored against the
 ground truth: precision, recall and EA-score (docs/formats.md#articulation-precision-and-recall),
 and the detections' own 2D precision / recall against the parts.
 
+Articulate's decision weights: ``--decisions prior`` (the hand-set ones, the same for every
+model) or ``fitted``: for each model, the benchmark's fit (:func:`drawer_lib.bench.fit.fit_decisions`,
+``bench.fit`` settings) on that model's own decisions in the train kitchens ``--fit-kitchens``
+(which a ``--split train`` run must have written), so a detector's typical failures are
+learnt from its own train kitchens, never from the split scored. ``fitted`` reruns articulate
+only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior`` run left.
+
     python scripts/bench_detect.py --split test --jobs 2
     python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
+    python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
 
 Writes ``<out>/<split>/summary.json``; each kitchen's folders stay under ``<out>`` (a rerun
 scores again without rebuilding the capture and geometry). Simulated input: rendered RGB-D.
@@ -28,7 +36,9 @@ from omegaconf import OmegaConf
 import drawer_lib  # noqa: F401  (before torch: the OpenMP policy)
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.pipeline import run_articulate
+from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.evaluate import score_kitchen
+from drawer_lib.bench.fit import fit_decisions, labelled_fronts
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.capture.build import build_capture
 from drawer_lib.capture.config import CaptureConfig
@@ -38,10 +48,11 @@ from drawer_lib.detect.config import DetectConfig
 from drawer_lib.detect.pipeline import run_detect
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.images import read_json
+from drawer_lib.io.parts import read_parts
 from drawer_lib.io.overlay import apply_overlay
 from drawer_lib.mesh.config import MeshConfig
 from drawer_lib.mesh.pipeline import run_mesh
-from drawer_lib.paths import BenchPaths, ScenePaths
+from drawer_lib.paths import BenchPaths, ScenePaths, capture_name
 from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.perception.pipeline import run_decompose
 from drawer_lib.runner import stage_run
@@ -50,10 +61,14 @@ from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
 
 ROOT = Path(__file__).resolve().parent.parent
+FITTED_DIR = "articulate_fitted"
 OVERRIDES = ["scene=kitchen_small", "capture/detections=persistent", "capture/depth=sensor", "sdf=tsdf"]
 
 
-def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path) -> dict:
+def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
+            decisions: dict[str, dict] | None = None) -> dict:
+    """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
+    weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior."""
     import torch
 
     torch.set_num_threads(1)
@@ -76,20 +91,49 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path) -> 
     for model in models:
         v = ScenePaths(sp.root / "by_detector", model)
         t0 = time.perf_counter()
-        with stage_run("detect", v.detect, seed) as r:
-            r.metrics.update(run_detect(DetectConfig(model=model), cap, weights, r))
+        if decisions is None:
+            with stage_run("detect", v.detect, seed) as r:
+                r.metrics.update(run_detect(DetectConfig(model=model), cap, weights, r))
+        elif not v.metrics("decompose").is_file():
+            raise SystemExit(f"error: {v.metrics('decompose')}: missing; run this split with --decisions prior first")
         vcap = apply_overlay(cap, v.file("detect", "index"))
-        with stage_run("decompose", v.stage_dir("decompose"), seed) as r:
-            r.metrics.update(run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), vcap, sp.mesh, r))
-        with stage_run("articulate", v.stage_dir("articulate"), seed) as r:
-            r.metrics.update(run_articulate(ac, vcap, v.stage_dir("decompose"), r, weights=ac.types.prior))
-        s = score_kitchen(sp, v.parts)
+        if decisions is None:
+            with stage_run("decompose", v.stage_dir("decompose"), seed) as r:
+                r.metrics.update(run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), vcap, sp.mesh, r))
+        art = v.stage_dir("articulate") if decisions is None else v.root / FITTED_DIR
+        with stage_run("articulate", art, seed) as r:
+            r.metrics.update(run_articulate(ac, vcap, v.stage_dir("decompose"), r,
+                                            weights=ac.types.prior if decisions is None else decisions[model]))
+        s = score_kitchen(sp, art / v.parts.name)
         dm = read_json(v.metrics("detect"))
         row[model] = {"precision": s["precision"], "recall": s["recall"], "ea_score": s.get("ea_score"),
                       "n_pred": s["n_pred"] - s["n_ignored"], "n_gt": s["n_gt"], "n_correct": s["n_correct"],
                       "parts_2d_precision": dm.get("parts_2d_precision"), "parts_2d_recall": dm.get("parts_2d_recall"),
                       "source": read_json(v.metrics("decompose"))["source"], "s": round(time.perf_counter() - t0, 1)}
     return row
+
+
+def fit_per_model(models: list[str], out: Path, kitchens: list[int]) -> tuple[dict[str, dict], dict[str, dict]]:
+    """(weights, fit record) per model, each fitted on that model's decisions in train ``kitchens``."""
+    cfg = compose_config(ROOT / "conf", OVERRIDES)
+    bc, ac = to_typed(BenchConfig, cfg.bench, "bench"), to_typed(ArticulateConfig, cfg.articulate, "articulate")
+    weights, records = {}, {}
+    for model in models:
+        rows = []
+        for k in kitchens:
+            sp = ScenePaths(out / "train", f"kitchen_{k}")
+            dec = ScenePaths(sp.root / "by_detector", model).file("articulate", "decisions")
+            if not dec.is_file():
+                raise SystemExit(f"error: {dec}: missing; run --split train --kitchens {' '.join(map(str, kitchens))} first")
+            rows += labelled_fronts(f"train_{k}", dec, read_parts(sp.capture / capture_name("gt_parts")))
+        res = fit_decisions(rows, ac.types.prior, bc.fit.lambdas, min(bc.fit.folds, len(kitchens)), bc.fit.min_examples,
+                            select=bc.fit.select)
+        weights[model] = res.weights
+        records[model] = {"n_fronts": len(rows), "lambda": res.lam, "cv_accuracy": dict(res.cv)[res.lam],
+                          "train_accuracy": res.train_accuracy, "kitchens": kitchens}
+        print(f"fitted {model}: {len(rows)} fronts of train kitchens {kitchens}, lambda {res.lam}, "
+              f"CV accuracy {dict(res.cv)[res.lam]:.2f}", flush=True)
+    return weights, records
 
 
 def summarise(rows: list[dict], models: list[str]) -> dict:
@@ -121,11 +165,18 @@ def main() -> None:
                     help="the built-in detector's weights (the detector stage's output)")
     ap.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2)))
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_detect"))
+    ap.add_argument("--decisions", default="prior", choices=["prior", "fitted"],
+                    help="articulate's decision weights: the prior, or fitted per model on --fit-kitchens")
+    ap.add_argument("--fit-kitchens", type=int, nargs="+", default=[16, 17, 18, 19],
+                    help="train kitchens (already run with --split train) the fitted weights learn from")
     a = ap.parse_args()
+    if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
+        raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
     if "builtin" in a.detect and not a.weights.is_file():
         raise SystemExit(f"error: {a.weights}: the built-in detector's weights are missing (run `dvc repro detector`)")
+    fitted, fit_rec = fit_per_model(a.detect, a.out, a.fit_kitchens) if a.decisions == "fitted" else (None, None)
     with ProcessPoolExecutor(a.jobs) as ex:
-        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve()) for k in a.kitchens]
+        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve(), fitted) for k in a.kitchens]
         rows = []
         for f in futs:
             row = f.result()
@@ -133,14 +184,16 @@ def main() -> None:
             print(f"{a.split} {row['kitchen']:2d}: " + "   ".join(
                 f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
                 f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
-    summ = {"split": a.split, "kitchens": a.kitchens, "weights": "prior", "by_model": summarise(rows, a.detect), "rows": rows}
+    summ = {"split": a.split, "kitchens": a.kitchens, "weights": a.decisions, "fit": fit_rec,
+            "by_model": summarise(rows, a.detect), "rows": rows}
     (a.out / a.split).mkdir(parents=True, exist_ok=True)
-    (a.out / a.split / "summary.json").write_text(json.dumps(summ, indent=2))
+    name = "summary.json" if a.decisions == "prior" else "summary-fitted.json"
+    (a.out / a.split / name).write_text(json.dumps(summ, indent=2))
 
     def f(x):
         return "–" if x is None else f"{x:.2f}"
 
-    print(f"\n| {a.split} ({len(rows)} kitchens) | precision (pooled / mean / worst) | recall (pooled / mean / worst) "
+    print(f"\n| {a.split} ({len(rows)} kitchens, {a.decisions} decisions) | precision (pooled / mean / worst) | recall (pooled / mean / worst) "
           "| EA-score | parts found | 2D masks: precision / recall |\n|---|---|---|---|---|---|")
     for m, s in summ["by_model"].items():
         print(f"| {m} | {f(s['precision_pooled'])} / {f(s['precision_mean'])} / {f(s['precision_worst'])} | "

@@ -8,10 +8,15 @@ the peak memory it records in its ``metrics.json``, and what the twin came out a
 
     python scripts/bench_sizes.py --size 640x480x150
     python scripts/bench_sizes.py --size 1280x960x300 --stages capture detect priors sdf mesh
+    python scripts/bench_sizes.py --size 1280x960x300 --tag full --stages sdf mesh decompose articulate \
+        --set sdf.max_side=null decompose.max_side=null articulate.max_side=null   # at full resolution
 
 The capture has no detections and no monocular priors: ``detect`` runs the built-in detector
 (``--bench``: where the ``detector`` stage wrote its weights), ``priors`` records none.
-Articulate uses the prior decision weights. Writes ``<out>/<size>/summary.json``. Simulated
+Articulate uses the prior decision weights. ``--set`` overrides apply to every stage that has
+the key's group; with ``--tag T`` the stages write to ``<out>/<size>/out-T/`` (the capture,
+detect and priors outputs linked from ``out/`` when T has none of its own), so two settings
+compare on one capture. Writes ``<out>/<size>/summary[-T].json``. Simulated
 input: rendered RGB and depth, sampled as a time-of-flight sensor samples it.
 """
 
@@ -62,6 +67,9 @@ def main() -> None:
     ap.add_argument("--stages", nargs="+", default=STAGES)
     ap.add_argument("--bench", type=Path, default=ROOT / "bench", help="paths.bench: the detector's weights")
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_sizes"))
+    ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="Hydra overrides, each passed to the stages whose config group it names")
+    ap.add_argument("--tag", default="", help="write the stage outputs to out-TAG/ (shared inputs linked from out/)")
     a = ap.parse_args()
     w, h, n = (int(x) for x in a.size.split("x"))
     root = a.out / a.size
@@ -74,14 +82,22 @@ def main() -> None:
     conf = root / "conf" / "scene"
     conf.mkdir(parents=True, exist_ok=True)
     (conf / f"{scene}.yaml").write_text(f"source: dir\ndir: {{path: {data}, metric_scale: true, gravity: true}}\n")
-    common = [f"scene={scene}", f"paths.out={root / 'out'}", f"paths.bench={a.bench.resolve()}",
+    out = root / (f"out-{a.tag}" if a.tag else "out")
+    if a.tag:
+        for st in ("capture", "detect", "priors"):
+            shared, own = root / "out" / scene / st, out / scene / st
+            if shared.is_dir() and not own.exists() and st not in a.stages:
+                own.parent.mkdir(parents=True, exist_ok=True)
+                own.symlink_to(shared)
+    common = [f"scene={scene}", f"paths.out={out}", f"paths.bench={a.bench.resolve()}",
               f"paths.reports={root / 'reports'}", f"hydra.searchpath=[file://{root / 'conf'}]"]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    sp = ScenePaths(root / "out", scene)
+    sp = ScenePaths(out, scene)
     rows = []
     for st in a.stages:
         t0 = time.perf_counter()
-        r = subprocess.run([sys.executable, "-m", f"stages.{st}", *common, *EXTRA.get(st, [])], cwd=ROOT, env=env,
+        sets = [s for s in a.set if s.split(".")[0] == st]
+        r = subprocess.run([sys.executable, "-m", f"stages.{st}", *common, *EXTRA.get(st, []), *sets], cwd=ROOT, env=env,
                            capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if r.returncode != 0:
@@ -90,10 +106,10 @@ def main() -> None:
         mp = (sp.appearance_dir("movable_gs_ste") / "metrics.json") if st == "appearance" else sp.metrics(st)
         m = read_json(mp)
         rows.append({"stage": st, "wall_s": m["wall_s"], "process_s": round(wall, 1), "peak_rss_mb": m["peak_rss_mb"],
-                     "threads": m.get("threads"), "skipped": m.get("skipped", {})})
+                     "threads": m.get("threads"), "working_size": m.get("working_size"), "skipped": m.get("skipped", {})})
         print(f"{a.size} {st:11s} {m['wall_s']:8.1f} s  (process {wall:7.1f} s)  peak {m['peak_rss_mb']:7.0f} MiB",
               flush=True)
-    summ = {"size": a.size, "frames_written": len(read_json(data / "transforms.json")["frames"]),
+    summ = {"size": a.size, "tag": a.tag, "set": a.set, "frames_written": len(read_json(data / "transforms.json")["frames"]),
             "render_s": float((root / "render_s.txt").read_text()), "stages": rows}
     if sp.parts.is_file():
         gt = read_parts(sp.capture / capture_name("gt_parts"))
@@ -103,7 +119,7 @@ def main() -> None:
         summ["detect"] = {k: v for k, v in read_json(sp.metrics("detect")).items() if k.startswith(("parts_2d", "model"))}
     if sp.metrics("twin").is_file():
         summ["twin"] = {k: v for k, v in read_json(sp.metrics("twin")).items() if isinstance(v, (int, float, str, bool))}
-    (root / "summary.json").write_text(json.dumps(summ, indent=2))
+    (root / (f"summary-{a.tag}.json" if a.tag else "summary.json")).write_text(json.dumps(summ, indent=2))
     print(json.dumps({k: v for k, v in summ.items() if k != "stages"}, indent=1))
 
 

@@ -86,6 +86,20 @@ def scene_paths(tmp: Path, scene: str = "kitchen_tiny"):
     return ScenePaths(tmp / "out", scene)
 
 
+def gt_mesh_project(tmp: Path, capture: Path, scene: str = "kitchen_tiny") -> Path:
+    """``tmp`` as a project whose ``scene`` has ``capture`` (copied) and its GT mesh as the mesh
+    stage's output, for the stages after ``mesh``; returns ``tmp``."""
+    import shutil
+
+    from drawer_lib.paths import capture_name
+
+    sp = scene_paths(tmp, scene)
+    shutil.copytree(capture, sp.capture)
+    sp.mesh.parent.mkdir(parents=True)
+    shutil.copy(sp.capture / capture_name("gt_mesh"), sp.mesh)
+    return tmp
+
+
 def quat_to_rot(q):
     """Rotation matrix of one wxyz quaternion of any norm, written out term by term: the slow
     reference the rotation code is tested against."""

@@ -217,3 +217,45 @@ def test_whole_dag_on_a_distorted_nerfstudio_capture(tmp_path_factory, exact_cap
     ev = json.loads(sp.metrics("evaluate").read_text())
     assert "precision" not in ev and "articulation" in ev["skipped"]
     assert "Data and pipelines are up to date." in run("dvc", "repro").stdout
+
+
+@pytest.mark.slow
+def test_make_run_on_a_video_a_phone_capture_and_a_synthetic_scene(tmp_path_factory, exact_capture):
+    """What `make run` runs (scripts/repro.py) on three scenes at once: the synthetic kitchen,
+    a phone's RGB-D capture as ns-process-data writes a Polycam one, and a plain H.264 video
+    with nothing else. Every scene reaches the twin; the TSDF comparison the video cannot run is
+    skipped with its reason, and so is every score that needs ground truth it lacks (~10 min)."""
+    from helpers import load_scene, render_capture, sensor_cfg
+
+    from drawer_lib.io.capture import load_capture
+    from drawer_lib.sfm.video import write_video
+    from drawer_lib.synth.phone import write_polycam
+
+    truth = tmp_path_factory.mktemp("video_truth")
+    render_capture(load_scene("kitchen_small"), sensor_cfg(depth="exact", detections="off", mono="off"), truth)
+    frames = load_capture(truth)
+
+    def prepare(d):
+        write_polycam(exact_capture[0], d / "data" / "phone")
+        (d / "conf" / "scene" / "phone.yaml").write_text(
+            "source: dir\ndir: {path: data/phone, metric_scale: true, gravity: true}\n")
+        write_video(d / "data" / "kitchen.mp4", [frames.image(i) for i in range(len(frames.frames))], fps=10, quality=10)
+        (d / "conf" / "scene" / "video.yaml").write_text("source: video\nvideo: {path: data/kitchen.mp4}\n")
+
+    params = [p for p in FAST_PARAMS if not p.startswith("scenes=")]
+    d, run = make_repo(tmp_path_factory, params + ["scenes=[kitchen_tiny,phone,video]", "bench.splits=[train]"], prepare)
+    r = run(sys.executable, "scripts/repro.py", "--jobs", "2")
+    for scene in ("kitchen_tiny", "phone", "video"):
+        sp = ScenePaths(d / "out", scene)
+        for p in (sp.field, sp.mesh, sp.parts, sp.stage_dir("twin") / "scene.xml", sp.metrics("evaluate")):
+            assert p.exists(), (scene, p)
+    phone, video = ScenePaths(d / "out", "phone"), ScenePaths(d / "out", "video")
+    assert json.loads(phone.metrics("sdf").read_text())["depth_source"] == "sensor"
+    assert json.loads(phone.metrics("detect").read_text())["model"] == "builtin"
+    tsdf = json.loads(ScenePaths(d / "out", "video", "tsdf").metrics("sdf").read_text())
+    assert "needs metric depth" in tsdf["skipped"]["sdf"]
+    man = json.loads((video.capture / capture_name("manifest")).read_text())
+    assert man["world_frame"]["scale"]["factor"] > 0 and "scale estimated from" in man["world_frame"]["how"]
+    ev = json.loads(video.metrics("evaluate").read_text())
+    assert "precision" not in ev and "articulation" in ev["skipped"]
+    assert "Data and pipelines are up to date." in run("dvc", "repro").stdout, r.stdout[-3000:]

@@ -356,6 +356,7 @@ class ArticulateConfig:
     :func:`drawer_lib.articulation.estimators.register_estimator`)."""
 
     estimator: str = "geometric"
+    max_side: int | None = 640  # working resolution of the views, masks and rectified fronts (drawer_lib/io/working.py); None: the capture's
     fronts: FrontsConfig = field(default_factory=FrontsConfig)
     handles: HandlesConfig = field(default_factory=HandlesConfig)
     rectify: RectifyConfig = field(default_factory=RectifyConfig)
@@ -364,3 +365,7 @@ class ArticulateConfig:
     joints: JointsConfig = field(default_factory=JointsConfig)
     interaction: InteractionConfig = field(default_factory=InteractionConfig)
     false_fronts: FalseFrontsConfig = field(default_factory=FalseFrontsConfig)
+
+    def __post_init__(self):
+        if self.max_side is not None and self.max_side < 8:
+            raise ConfigError(f"articulate.max_side = {self.max_side} must be >= 8 px or null")

@@ -13,6 +13,7 @@ from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
 from drawer_lib.io.parts import PartsFile, write_parts
+from drawer_lib.io.working import at_working_size, working_size_metrics
 from drawer_lib.perception.decompose import HANDLE_LABELS, Segment, absorb_handles
 from drawer_lib.perception.pipeline import load_segments
 from drawer_lib.runner import StageRun
@@ -66,6 +67,8 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
     ``weights``: the score rule's (:func:`drawer_lib.articulation.weights.resolve_weights`;
     None: ``cfg.types.prior``)."""
     est = get_estimator(cfg.estimator)
+    cap = at_working_size(cap, cfg.max_side)
+    run.metrics.update(working_size_metrics(cap))
     mesh, segs, hits, face_views = load_segments(seg_dir)
     if cfg.handles.evidence == "view_rate" and face_views is None:
         raise InputError(f"{seg_dir}: face_labels has no face_views, which articulate.handles.evidence = "

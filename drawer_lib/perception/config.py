@@ -55,6 +55,7 @@ class DecomposeConfig:
     ``detections`` / ``geometric`` force one path."""
 
     source: str = "auto"
+    max_side: int | None = 640  # working resolution of the views and masks (drawer_lib/io/working.py); None: the capture's
     max_faces: int = 40000
     max_edge: float = 0.06
     erode_px: int = 1
@@ -91,5 +92,7 @@ class DecomposeConfig:
             raise ConfigError("decompose: min_score and dup_overlap must be in (0, 1]")
         if self.band_px < 0:
             raise ConfigError(f"decompose.band_px = {self.band_px} must be >= 0")
+        if self.max_side is not None and self.max_side < 8:
+            raise ConfigError(f"decompose.max_side = {self.max_side} must be >= 8 px or null")
         if self.max_faces < 100 or self.min_faces < 1:
             raise ConfigError("decompose: max_faces >= 100 and min_faces >= 1")

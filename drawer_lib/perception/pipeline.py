@@ -15,6 +15,7 @@ from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import read_json, write_json
 from drawer_lib.io.overlay import capture_manifest
+from drawer_lib.io.working import at_working_size, working_size_metrics
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.paths import capture_name, stage_name
 from drawer_lib.perception.config import DecomposeConfig
@@ -27,8 +28,11 @@ SEGMENTS_SCHEMA = "drawer.segments/1"
 
 def run_decompose(cfg: DecomposeConfig, cap: Capture, mesh_path: Path, run: StageRun) -> dict:
     """Segment the mesh at ``mesh_path`` from the capture's detections (or, without them, by the
-    geometric fallback) and write the decompose outputs."""
+    geometric fallback) and write the decompose outputs. Views and masks are at the working
+    resolution of ``cfg.max_side``."""
     manifest = capture_manifest(cap)
+    cap = at_working_size(cap, cfg.max_side)
+    run.metrics.update(working_size_metrics(cap))
     mesh = perception_mesh(load_mesh(mesh_path, "run the mesh stage first"), cfg.max_faces, cfg.max_edge, cap,
                            list(cap.train))
     has_det = cap.has("detections_path")

@@ -182,8 +182,10 @@ class TsdfConfig:
 @dataclass(frozen=True)
 class SdfConfig:
     method: str = "neural"  # neural | tsdf
+    max_side: int | None = 640  # working resolution: images reduced to at most this many px on their longer side (drawer_lib/io/working.py); None: the capture's
     neural: NeuralConfig = field(default_factory=NeuralConfig)
     tsdf: TsdfConfig = field(default_factory=TsdfConfig)
 
     def __post_init__(self):
         _check(self.method in ("neural", "tsdf"), f"sdf.method = {self.method!r} must be neural or tsdf")
+        _check(self.max_side is None or self.max_side >= 8, f"sdf.max_side = {self.max_side} must be >= 8 px or null")

@@ -8,6 +8,7 @@ import numpy as np
 from drawer_lib.errors import InputError
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.overlay import capture_manifest
+from drawer_lib.io.working import at_working_size, working_size_metrics
 from drawer_lib.paths import capture_name
 from drawer_lib.runner import StageRun
 from drawer_lib.sdf.config import SdfConfig
@@ -33,8 +34,11 @@ def check_capture(cap: Capture) -> None:
 
 
 def run_sdf(cfg: SdfConfig, cap: Capture, run: StageRun) -> dict:
-    """Fit the field selected by ``cfg.method`` and write the stage's ``field.pt``; returns metrics."""
+    """Fit the field selected by ``cfg.method`` on ``cap`` read at ``cfg.max_side`` and write
+    the stage's ``field.pt``; returns metrics."""
     check_capture(cap)
+    cap = at_working_size(cap, cfg.max_side)
+    run.metrics.update(working_size_metrics(cap))
     manifest = capture_manifest(cap)
     probe = None
     if manifest.has.get("gt", False):

@@ -35,12 +35,17 @@ class TestDepth:
 class GeometryProbe:
     """Scores SDFs of one capture against its ground truth (``gt/mesh.ply`` must exist)."""
 
-    def __init__(self, cap: Capture, cell: float = 0.02, n_points: int = 100_000, pixel_stride: int = 2):
+    def __init__(self, cap: Capture, cell: float = 0.02, n_points: int = 100_000, pixel_stride: int = 2,
+                 max_test_rays: int = 200_000):
+        """Test depth is scored on every ``pixel_stride``-th pixel of the test views, or on a
+        coarser stride when that would exceed ``max_test_rays`` (a phone's hundreds of frames)."""
         self.cap, self.cell = cap, cell
         self.gt = load_mesh(cap.root / capture_name("gt_mesh"))
         self.w2c = np.stack([cap.frames[i].w2c for i in cap.train])
         self.evaluator = MeshEvaluator(self.gt, cap.intrinsics, self.w2c, n_points=n_points)
-        self.test = self._test_depth(pixel_stride)
+        n_px = len(cap.test) * cap.intrinsics.width * cap.intrinsics.height
+        self.test_stride = max(pixel_stride, int(np.ceil(np.sqrt(n_px / max_test_rays))))
+        self.test = self._test_depth(self.test_stride)
 
     def _test_depth(self, stride: int) -> TestDepth | None:
         if not self.cap.test:

@@ -16,6 +16,16 @@ from drawer_lib.io.capture import Capture
 from drawer_lib.sdf.priors import MonoEstimator
 
 
+def _stack(frames: list[int], read, dtype: torch.dtype) -> Tensor:
+    """[N, ...] of ``read(i)`` for each frame, filled one frame at a time (no list of copies)."""
+    first = torch.as_tensor(read(frames[0]))
+    out = torch.empty((len(frames), *first.shape), dtype=dtype)
+    out[0] = first
+    for k, i in enumerate(frames[1:], 1):
+        out[k] = torch.as_tensor(read(i))
+    return out
+
+
 @dataclass
 class RayBatch:
     origins: Tensor  # [R, 3]
@@ -28,7 +38,8 @@ class RayBatch:
 
 
 class RayBank:
-    """Targets of the train frames, held in memory (float32), sampled in image groups."""
+    """Targets of the train frames, held in memory (colour as uint8, the rest float32), sampled
+    in image groups. Each frame is read and flattened on its own."""
 
     def __init__(self, cap: Capture, frames: list[int], use_depth: bool, mono: MonoEstimator | None,
                  use_mono_depth: bool, use_normal: bool, sparse_points: np.ndarray | None = None):
@@ -41,15 +52,17 @@ class RayBank:
         self.R = torch.tensor(c2w[:, :3, :3], dtype=torch.float32)
         self.C = torch.tensor(c2w[:, :3, 3], dtype=torch.float32)
         self.d_cam = torch.tensor(pixel_dirs(self.intr).reshape(-1, 3), dtype=torch.float32)  # [H*W, 3], z = 1
-        self.rgb = torch.tensor(np.stack([cap.image(i).reshape(-1, 3) for i in frames]), dtype=torch.float32) / 255.0
+        n_pix = self.intr.width * self.intr.height
+        self.rgb_u8 = _stack(frames, lambda i: cap.image(i).reshape(n_pix, 3), torch.uint8)  # [N, H*W, 3]
         self.depth = self.mono = self.normal = None
         if use_depth:
-            self.depth = torch.tensor(np.stack([cap.depth(i).reshape(-1) for i in frames]))
+            self.depth = _stack(frames, lambda i: cap.depth(i).reshape(n_pix), torch.float32)
         if use_mono_depth:
-            self.mono = torch.tensor(np.stack([mono.depth(i).reshape(-1) for i in frames]))
-        if use_normal:
-            n = np.stack([mono.normal(i).reshape(-1, 3) for i in frames])  # camera frame
-            self.normal = torch.einsum("iab,inb->ina", self.R, torch.tensor(n, dtype=torch.float32))
+            self.mono = _stack(frames, lambda i: mono.depth(i).reshape(n_pix), torch.float32)
+        if use_normal:  # camera -> world frame, frame by frame
+            self.normal = _stack(frames, lambda i: mono.normal(i).reshape(n_pix, 3), torch.float32)
+            for k in range(len(frames)):
+                self.normal[k] = torch.einsum("ab,nb->na", self.R[k], self.normal[k])
         self.sfm = None
         if sparse_points is not None and len(sparse_points):
             self.sfm = self._project(sparse_points)
@@ -91,12 +104,17 @@ class RayBank:
         pix = torch.randint(0, self.n_pixels, (groups * per_group,), generator=gen)
         o, d = self.rays(img, pix)
         return RayBatch(
-            o, d, self.rgb[img, pix],
+            o, d, self.rgb_u8[img, pix].float() / 255.0,
             None if self.depth is None else self.depth[img, pix],
             None if self.mono is None else self.mono[img, pix],
             None if self.normal is None else self.normal[img, pix],
             groups,
         )
+
+    @property
+    def rgb(self) -> Tensor:
+        """[N, H * W, 3] float32 colours in [0, 1] of all train pixels (a copy: 4x the bank's)."""
+        return self.rgb_u8.float() / 255.0
 
     def sample_depth(self, n: int, gen: torch.Generator) -> tuple[Tensor, Tensor, Tensor]:
         """Origins, directions [M, 3] and metric z-depths [M] of ``n`` pixels drawn uniformly over

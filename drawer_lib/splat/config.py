@@ -92,6 +92,7 @@ class AppearanceConfig:
     backend: str = "cpu"  # cpu | gsplat (CUDA)
     tile: int = 16
     train_scale: int = 1  # train on images downsampled by this integer factor (box filter); test views stay full size
+    max_side: int | None = 640  # ... or by the larger factor that brings their longer side to <= max_side px (None: train_scale only)
     anchor_displacement: AnchorDisplacement = field(default_factory=AnchorDisplacement)
 
     def __post_init__(self):
@@ -107,5 +108,7 @@ class AppearanceConfig:
             raise ConfigError(f"appearance.max_seconds = {self.max_seconds} must be > 0 or null (no cap)")
         if self.train_scale < 1:
             raise ConfigError(f"appearance.train_scale = {self.train_scale} must be an integer >= 1")
+        if self.max_side is not None and self.max_side < 8:
+            raise ConfigError(f"appearance.max_side = {self.max_side} must be >= 8 px or null")
         if self.steps < 1 or self.max_faces < 10:
             raise ConfigError("appearance: need steps >= 1 and max_faces >= 10")

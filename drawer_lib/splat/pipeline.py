@@ -16,7 +16,7 @@ from drawer_lib.splat.anchored import anchored_gaussians, bound_activity
 from drawer_lib.splat.config import AppearanceConfig
 from drawer_lib.splat.ply import write_face_binding, write_gaussian_ply
 from drawer_lib.splat.train import (EvalResult, bounds_report, evaluate_images, prepare, render_test, textured_mesh,
-                                    train_gaussians)
+                                    train_factor, train_gaussians)
 
 
 def _write_renders(d: Path, cap: Capture, res: EvalResult) -> None:
@@ -39,7 +39,8 @@ def run_appearance(cfg: AppearanceConfig, cap: Capture, mesh_path: Path, run: St
         m["anchor_displacement_rms_m"] = round(float(np.sqrt(np.mean(d ** 2))), 6)
     sc = prepare(cap, mesh, cfg)
     prep_s = time.perf_counter() - t0
-    m.update({"mesh_faces": len(sc.mesh.faces), "prepare_s": round(prep_s, 3), "train_scale": cfg.train_scale})
+    m.update({"mesh_faces": len(sc.mesh.faces), "prepare_s": round(prep_s, 3), "train_scale": train_factor(cap, cfg),
+              "working_size": [sc.train_cams[0].intrinsics.width, sc.train_cams[0].intrinsics.height]})
     model = run.out("model")
     model.mkdir()
     curve = run.curve(["test_psnr", "n_gaussians"])

@@ -13,6 +13,7 @@ from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
+from drawer_lib.io.working import working_factor
 from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
 from drawer_lib.paths import capture_name
 from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, bounds_violation, face_frames, init_anchored
@@ -72,20 +73,27 @@ def downscale_images(images: Float[torch.Tensor, "C H W 3"], f: int) -> Float[to
     return images[:, : h * f, : w * f].reshape(C, h, f, w, f, 3).mean((2, 4))
 
 
+def train_factor(cap: Capture, cfg: AppearanceConfig) -> int:
+    """The train images' box-filter factor: ``cfg.train_scale``, or the larger working factor
+    that brings their longer side to at most ``cfg.max_side`` (:mod:`drawer_lib.io.working`)."""
+    return max(cfg.train_scale, working_factor(cap.intrinsics.width, cap.intrinsics.height, cfg.max_side))
+
+
 def prepare(cap: Capture, mesh: trimesh.Trimesh, cfg: AppearanceConfig) -> Scene:
     """Decimate the anchor mesh, load the train / test views (train views box-filtered by
-    ``cfg.train_scale``; test views always full size) and the mesh's depth in each."""
+    :func:`train_factor`, each as it is read; test views always full size) and the mesh's depth
+    in each."""
     if len(mesh.faces) == 0:
         raise InputError("appearance: the mesh is empty")
     if not cap.test:
         raise InputError(f"{cap.root / capture_name('transforms')}: no test frames to evaluate on")
     m = decimate(mesh, cfg.max_faces)
     rc = Raycaster(np.asarray(m.vertices), np.asarray(m.faces))
-    f = cfg.train_scale
+    f = train_factor(cap, cfg)
     train_cams = [downscale_camera(c, f) for c in cap.cameras(cap.train)]
     w_tr = np.stack([c.w2c for c in train_cams])
     w_te = np.stack([cap.frames[i].w2c for i in cap.test])
-    train_rgb = downscale_images(to_tensor_images(np.stack([cap.image(i) for i in cap.train])), f)
+    train_rgb = torch.cat([downscale_images(to_tensor_images(cap.image(i)[None]), f) for i in cap.train])
     return Scene(m, rc, train_cams, cap.cameras(cap.test), train_rgb,
                  to_tensor_images(np.stack([cap.image(i) for i in cap.test])),
                  torch.from_numpy(mesh_depths(rc, train_cams[0].intrinsics, w_tr)),

@@ -7,18 +7,14 @@ import json
 import shutil
 
 import pytest
-from helpers import add_overlays, run_stage, scene_paths
+from helpers import add_overlays, gt_mesh_project, run_stage, scene_paths
 
 from drawer_lib.io.parts import read_parts
-from drawer_lib.paths import capture_name
 
 
 @pytest.fixture()
 def project(tmp_path, exact_capture):
-    scene = tmp_path / "out" / "kitchen_tiny"
-    shutil.copytree(exact_capture[0], scene / "capture")
-    (scene / "mesh").mkdir()
-    shutil.copy(scene / "capture" / capture_name("gt_mesh"), scene_paths(tmp_path).mesh)
+    gt_mesh_project(tmp_path, exact_capture[0])
     add_overlays(tmp_path, priors=False)
     return tmp_path
 

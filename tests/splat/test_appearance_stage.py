@@ -6,7 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
-from helpers import run_stage, scene_paths
+from helpers import gt_mesh_project, run_stage, scene_paths
 
 from drawer_lib.paths import LAYOUT, capture_name
 from drawer_lib.splat.ply import read_ply_columns
@@ -22,12 +22,7 @@ def run(module, tmp, *extra):
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory, exact_capture):
-    tmp = tmp_path_factory.mktemp("app")
-    scene = tmp / "out" / "kitchen_tiny"
-    shutil.copytree(exact_capture[0], scene / "capture")
-    (scene / "mesh").mkdir()
-    shutil.copy(scene / "capture" / capture_name("gt_mesh"), scene_paths(tmp).mesh)
-    return tmp
+    return gt_mesh_project(tmp_path_factory.mktemp("app"), exact_capture[0])
 
 
 @pytest.mark.parametrize("variant", ["movable_gs_ste", "static_gs", "textured_mesh"])
