@@ -61,3 +61,24 @@ def ssim(x: Float[Tensor, "B C H W"], y: Float[Tensor, "B C H W"], size: int = 1
     c1, c2 = 0.01**2, 0.03**2
     s = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
     return s.flatten(1).mean(1)
+
+
+EVAL_CHUNK_PX = 4_000_000  # pixels scored at once: a phone's 30 full-size test views at once took ~10 GB
+
+
+def image_scores(pred: Float[Tensor, "T H W 3"], gt: Float[Tensor, "T H W 3"], with_lpips: bool = True,
+                 chunk_px: int | None = None) -> dict[str, Tensor]:
+    """Per-image ``psnr``, ``ssim`` (and ``lpips``) [T] of images in [0, 1] (``pred`` clamped),
+    scored in chunks of at most ``chunk_px`` pixels (default ``EVAL_CHUNK_PX``; small views: one chunk)."""
+    T, H, W = pred.shape[:3]
+    step = max(1, (chunk_px or EVAL_CHUNK_PX) // (H * W))
+    out: dict[str, list[Tensor]] = {"psnr": [], "ssim": []} | ({"lpips": []} if with_lpips else {})
+    for s in range(0, T, step):
+        x, y = pred[s:s + step].permute(0, 3, 1, 2).clamp(0, 1), gt[s:s + step].permute(0, 3, 1, 2)
+        out["psnr"].append(psnr(x, y))
+        out["ssim"].append(ssim(x, y))
+        if with_lpips:
+            from drawer_lib.metrics.lpips import lpips
+
+            out["lpips"].append(lpips(x, y))
+    return {k: torch.cat(v) for k, v in out.items()}

@@ -14,7 +14,7 @@ from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.working import working_factor
-from drawer_lib.metrics.image import psnr, ssim, ssim_target_stats
+from drawer_lib.metrics.image import image_scores, psnr, ssim, ssim_target_stats
 from drawer_lib.paths import capture_name
 from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, bounds_violation, face_frames, init_anchored
 from drawer_lib.splat.config import AppearanceConfig
@@ -109,12 +109,11 @@ class EvalResult:
 
 
 def evaluate_images(pred: torch.Tensor, gt: torch.Tensor, with_lpips: bool = True) -> EvalResult:
-    """Mean PSNR / SSIM / LPIPS (docs/formats.md#nvs) of predictions [T, H, W, 3] against GT."""
-    from drawer_lib.metrics.lpips import lpips
-
-    x, y = pred.permute(0, 3, 1, 2).clamp(0, 1), gt.permute(0, 3, 1, 2)
-    lp = float(lpips(x, y).mean()) if with_lpips else float("nan")
-    return EvalResult(float(psnr(x, y).mean()), float(ssim(x, y).mean()), lp, pred.numpy())
+    """Mean PSNR / SSIM / LPIPS (docs/formats.md#nvs) of predictions [T, H, W, 3] against GT
+    (:func:`~drawer_lib.metrics.image.image_scores`, in chunks)."""
+    s = image_scores(pred, gt, with_lpips)
+    lp = float(s["lpips"].mean()) if with_lpips else float("nan")
+    return EvalResult(float(s["psnr"].mean()), float(s["ssim"].mean()), lp, pred.numpy())
 
 
 @torch.no_grad()

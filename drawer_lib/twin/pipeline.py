@@ -41,7 +41,7 @@ from drawer_lib.io.images import write_json, write_rgb
 from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.parts import Part, read_parts
 from drawer_lib.metrics.articulation import match_parts
-from drawer_lib.metrics.image import psnr, ssim
+from drawer_lib.metrics.image import image_scores
 from drawer_lib.paths import capture_name, stage_name
 from drawer_lib.runner import StageRun
 from drawer_lib.bodies import Shape
@@ -76,13 +76,7 @@ def _visual_glb(model, path: Path) -> None:
 
 
 def _score(pred: list[torch.Tensor], gt: list[torch.Tensor], regions: list[np.ndarray] | None, with_lpips: bool) -> dict:
-    x = torch.stack(pred).permute(0, 3, 1, 2).clamp(0, 1)
-    y = torch.stack(gt).permute(0, 3, 1, 2)
-    out = {"psnr": psnr(x, y).tolist(), "ssim": ssim(x, y).tolist()}
-    if with_lpips:
-        from drawer_lib.metrics.lpips import lpips
-
-        out["lpips"] = lpips(x, y).tolist()
+    out = {k: v.tolist() for k, v in image_scores(torch.stack(pred), torch.stack(gt), with_lpips).items()}
     if regions is not None:
         out["region_psnr"] = [region_psnr(p, g, m) for p, g, m in zip(pred, gt, regions)]
     return out

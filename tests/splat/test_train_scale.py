@@ -53,3 +53,32 @@ def test_bad_factors_are_named():
         AnchorDisplacement(rms_m=float("nan"))
     with pytest.raises(ConfigError, match="wavelength_m"):
         AnchorDisplacement(rms_m=0.01, wavelength_m=0.0)
+
+
+def test_max_side_sets_the_train_factor():
+    from pathlib import Path
+
+    from drawer_lib.io.capture import Capture
+    from drawer_lib.splat.train import train_factor
+
+    cap = Capture(Path("phone"), Intrinsics(900.0, 900.0, 640.0, 480.0, 1280, 960), [], [], [])
+    assert train_factor(cap, AppearanceConfig()) == 2  # max_side 640 by default
+    assert train_factor(cap, AppearanceConfig(max_side=None)) == 1
+    assert train_factor(cap, AppearanceConfig(train_scale=4)) == 4  # the larger factor wins
+    with pytest.raises(ConfigError, match="appearance.max_side = 2"):
+        AppearanceConfig(max_side=2)
+
+
+def test_chunked_scores_equal_one_batch():
+    """Many large test views are scored in chunks; the per-image scores are those of one batch."""
+    from drawer_lib.metrics.image import image_scores
+
+    g = torch.Generator().manual_seed(0)
+    gt = torch.rand(5, 40, 48, 3, generator=g)
+    pred = gt + 0.1 * torch.randn(5, 40, 48, 3, generator=g)  # out of [0, 1]: clamped
+    whole = image_scores(pred, gt, chunk_px=10**9)
+    parts = image_scores(pred, gt, chunk_px=2 * 40 * 48)  # chunks of 2, 2 and 1 views
+    for k in ("psnr", "ssim", "lpips"):
+        assert parts[k].shape == (5,) and torch.isfinite(parts[k]).all()
+        np.testing.assert_allclose(parts[k].numpy(), whole[k].numpy(), rtol=1e-5)
+    assert "lpips" not in image_scores(pred, gt, with_lpips=False)
