@@ -234,71 +234,97 @@ def run_twin(cfg: TwinConfig, sim: SimConfig, cap: Capture, parts_path: Path, co
     bg = torch.tensor(rc.background, dtype=torch.float32)
     rdir = run.out("renders")
     rdir.mkdir()
-    t0 = time.perf_counter()
-    opened: dict[str, tuple[float, list]] = {}
-    index = []
-    for p in model.parts:
-        part = by_id[p.id]
-        q = opened_q(part, rc.open_fraction)
-        views = render_opened(static, bodies, by_id, p.id, q, cams, rc.sh_degree, bg)
-        opened[p.id] = (q, views)
-        (rdir / p.id).mkdir()
-        for stem, v, i in zip(stems, views, test):
-            f = f"{p.id}/{stem}.png"
-            write_rgb(rdir / f, (v.rgb.numpy() * 255 + 0.5).astype(np.uint8))
-            index.append({"id": p.id, "q": q, "file_path": cap.frames[i].file_path, "image": f})
+    synth = scene.synth if scene is not None and scene.source == "synth" else None
+    opened = _OpenedScores(cap, cams, parts, synth, rc, render_cfg, run)
+    t_render, index = 0.0, []
+    try:
+        for p in model.parts:  # one part's views at a time: a phone's 30 full-size views x 13 parts took 10 GB
+            t0 = time.perf_counter()
+            part = by_id[p.id]
+            q = opened_q(part, rc.open_fraction)
+            views = render_opened(static, bodies, by_id, p.id, q, cams, rc.sh_degree, bg)
+            (rdir / p.id).mkdir()
+            for stem, v, i in zip(stems, views, test):
+                f = f"{p.id}/{stem}.png"
+                write_rgb(rdir / f, (v.rgb.numpy() * 255 + 0.5).astype(np.uint8))
+                index.append({"id": p.id, "q": q, "file_path": cap.frames[i].file_path, "image": f})
+            t_render += time.perf_counter() - t0
+            opened.add(p.id, q, views)
+            del views
+    finally:
+        opened.close()
     write_json(run.out("renders_index"), {"renders": index})
-    m["render_s"] = round(time.perf_counter() - t0, 3)
+    m["render_s"] = round(t_render, 3)
 
     closed = [v.rgb for v in render_opened(static, bodies, by_id, model.parts[0].id, 0.0, cams, rc.sh_degree, bg)]
     real = [torch.from_numpy(cap.image(i).astype(np.float32) / 255.0) for i in test]
     sc = _score(closed, real, None, rc.lpips)
     m.update({f"closed_{k}": float(np.mean(v)) for k, v in sc.items()})
-    synth = scene.synth if scene is not None and scene.source == "synth" else None
-    if synth is None or not (cap.root / capture_name("gt_parts")).is_file():
-        run.skip("open_psnr", "no synthetic reference (the scene is not procedural or has no GT parts)")
-        return m
-    _opened_scores(m, cap, cams, parts, opened, synth, rc, rdir, run, render_cfg)
+    opened.finish(m)
     return m
 
 
-def _opened_scores(m: dict, cap: Capture, cams, parts, opened: dict, synth, rc, rdir: Path, run: StageRun,
-                   render_cfg: RenderConfig | None) -> None:
-    from drawer_lib.metrics.opened import SynthReference
+class _OpenedScores:
+    """The opened twin's scores against the procedural scene opened the same way, one part at a
+    time as its views are rendered (``render_scores.json``, ``open_*`` metrics, the contact
+    sheet). Skips with the reason when the scene is not procedural, has no GT parts or no
+    predicted part matches one of its kind."""
 
-    gt = read_parts(cap.root / capture_name("gt_parts"))
-    match = match_parts(parts, gt)
-    pairs = {match.pred[i].id: match.gt[j] for i, j, _ in match.correct}
-    if not pairs:
-        run.skip("open_psnr", "no predicted part matches a GT part of its kind")
-        return
-    t0 = time.perf_counter()
-    ref = SynthReference(synth, cams, render_cfg)
-    rows, sheet = [], []
-    try:
-        for pid, (q, views) in opened.items():
-            g: Part | None = pairs.get(pid)
-            if g is None:
-                continue
-            qg = float(np.clip(q, *g.limits))
-            gv = ref.views(g.id, qg)
-            regions = [(v.part_alpha.numpy() > 0.5) | mask for v, (_, mask) in zip(views, gv)]
-            s = _score([v.rgb for v in views], [rgb for rgb, _ in gv], regions, rc.lpips)
-            rows.append({"id": pid, "gt": g.id, "q": q, "gt_q": qg, **s})
-            best = int(np.argmax([r.sum() for r in regions]))
-            sheet.append(np.concatenate([_tile((gv[best][0].numpy() * 255).astype(np.uint8), rc.sheet_width),
-                                         _tile((views[best].rgb.numpy() * 255).astype(np.uint8), rc.sheet_width)], 1))
-    finally:
-        ref.close()
-    m["reference_s"] = round(time.perf_counter() - t0, 3)
-    for key in ("psnr", "ssim", "lpips"):
-        vals = [x for r in rows for x in r.get(key, [])]
-        if vals:
-            m[f"open_{key}"] = float(np.mean(vals))
-    reg = [x for r in rows for x in r["region_psnr"] if x is not None]
-    if reg:
-        m["open_region_psnr"] = float(np.mean(reg))
-    m["n_parts_scored_open"] = len(rows)
-    write_json(run.out("render_scores"), {"parts": rows})
-    if sheet:
-        Image.fromarray(np.concatenate(sheet, 0)).save(run.out("contact_sheet"))
+    def __init__(self, cap: Capture, cams, parts, synth, rc, render_cfg: RenderConfig | None, run: StageRun):
+        self.rc, self.run, self.ref, self.pairs, self.why = rc, run, None, {}, None
+        self.rows: list[dict] = []
+        self.sheet: list[np.ndarray] = []
+        self.ref_s = 0.0
+        if synth is None or not (cap.root / capture_name("gt_parts")).is_file():
+            self.why = "no synthetic reference (the scene is not procedural or has no GT parts)"
+            return
+        gt = read_parts(cap.root / capture_name("gt_parts"))
+        match = match_parts(parts, gt)
+        self.pairs = {match.pred[i].id: match.gt[j] for i, j, _ in match.correct}
+        if not self.pairs:
+            self.why = "no predicted part matches a GT part of its kind"
+            return
+        from drawer_lib.metrics.opened import SynthReference
+
+        t0 = time.perf_counter()
+        self.ref = SynthReference(synth, cams, render_cfg)
+        self.ref_s += time.perf_counter() - t0
+
+    def add(self, pid: str, q: float, views: list) -> None:
+        g: Part | None = self.pairs.get(pid)
+        if self.ref is None or g is None:
+            return
+        t0 = time.perf_counter()
+        qg = float(np.clip(q, *g.limits))
+        gv = self.ref.views(g.id, qg)
+        regions = [(v.part_alpha.numpy() > 0.5) | mask for v, (_, mask) in zip(views, gv)]
+        s = _score([v.rgb for v in views], [rgb for rgb, _ in gv], regions, self.rc.lpips)
+        self.rows.append({"id": pid, "gt": g.id, "q": q, "gt_q": qg, **s})
+        best = int(np.argmax([r.sum() for r in regions]))
+        w = self.rc.sheet_width
+        self.sheet.append(np.concatenate([_tile((gv[best][0].numpy() * 255).astype(np.uint8), w),
+                                          _tile((views[best].rgb.numpy() * 255).astype(np.uint8), w)], 1))
+        self.ref_s += time.perf_counter() - t0
+
+    def close(self) -> None:
+        if self.ref is not None:
+            self.ref.close()
+
+    def finish(self, m: dict) -> None:
+        run = self.run
+        if self.why is not None:
+            run.skip("open_psnr", self.why)
+            return
+        m["reference_s"] = round(self.ref_s, 3)
+        rows = self.rows
+        for key in ("psnr", "ssim", "lpips"):
+            vals = [x for r in rows for x in r.get(key, [])]
+            if vals:
+                m[f"open_{key}"] = float(np.mean(vals))
+        reg = [x for r in rows for x in r["region_psnr"] if x is not None]
+        if reg:
+            m["open_region_psnr"] = float(np.mean(reg))
+        m["n_parts_scored_open"] = len(rows)
+        write_json(run.out("render_scores"), {"parts": rows})
+        if self.sheet:
+            Image.fromarray(np.concatenate(self.sheet, 0)).save(run.out("contact_sheet"))
