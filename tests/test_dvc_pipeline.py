@@ -224,7 +224,7 @@ def test_make_run_on_a_video_a_phone_capture_and_a_synthetic_scene(tmp_path_fact
     """What `make run` runs (scripts/repro.py) on three scenes at once: the synthetic kitchen,
     a phone's RGB-D capture as ns-process-data writes a Polycam one, and a plain H.264 video
     with nothing else. Every scene reaches the twin; the TSDF comparison the video cannot run is
-    skipped with its reason, and so is every score that needs ground truth it lacks (~10 min)."""
+    skipped with its reason, and so is every score that needs ground truth it lacks (~6 min)."""
     from helpers import load_scene, render_capture, sensor_cfg
 
     from drawer_lib.io.capture import load_capture

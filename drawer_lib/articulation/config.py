@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 from drawer_lib.articulation.vocab import check_weights, prior_weights
 from drawer_lib.errors import ConfigError
+from drawer_lib.io.working import check_max_side
 
 
 @dataclass(frozen=True)
@@ -367,5 +368,4 @@ class ArticulateConfig:
     false_fronts: FalseFrontsConfig = field(default_factory=FalseFrontsConfig)
 
     def __post_init__(self):
-        if self.max_side is not None and self.max_side < 8:
-            raise ConfigError(f"articulate.max_side = {self.max_side} must be >= 8 px or null")
+        check_max_side("articulate.max_side", self.max_side)

@@ -31,16 +31,21 @@ from drawer_lib.geometry.camera import Intrinsics
 from drawer_lib.io.capture import Capture
 
 
+def check_max_side(key: str, max_side: int | None) -> None:
+    """A config's ``max_side`` is null or at least 8 px (``key`` names it in the error)."""
+    if max_side is not None and max_side < 8:
+        raise ConfigError(f"{key} = {max_side} must be >= 8 px or null (a working image needs 8 px on its longer side)")
+
+
 def working_factor(width: int, height: int, max_side: int | None) -> int:
     """The smallest integer ``f >= 1`` with ``max(width, height) / f <= max_side`` (1 for None).
 
     >>> working_factor(1920, 1440, 640), working_factor(200, 150, 640), working_factor(1281, 960, 640)
     (3, 1, 3)
     """
+    check_max_side("max_side", max_side)
     if max_side is None:
         return 1
-    if max_side < 8:
-        raise ConfigError(f"max_side = {max_side}: a working image needs at least 8 px on its longer side")
     return max(1, -(-max(width, height) // int(max_side)))
 
 
@@ -55,11 +60,17 @@ def scale_intrinsics(it: Intrinsics, f: int) -> Intrinsics:
     return Intrinsics(it.fx / f, it.fy / f, it.cx / f, it.cy / f, it.width // f, it.height // f, it.dist)
 
 
-def _blocks(a: np.ndarray, f: int) -> np.ndarray:
-    """[H, W, ...] -> [H // f, W // f, f * f, ...] (remainders cropped)."""
+def _block_grid(a: np.ndarray, f: int) -> tuple[int, int]:
+    """(H // f, W // f) of ``a`` [H, W, ...]; an error when a side would be empty."""
     h, w = a.shape[0] // f, a.shape[1] // f
     if h == 0 or w == 0:
         raise ConfigError(f"a working factor of {f} leaves nothing of a {a.shape[1]} x {a.shape[0]} image")
+    return h, w
+
+
+def _blocks(a: np.ndarray, f: int) -> np.ndarray:
+    """[H, W, ...] -> [H // f, W // f, f * f, ...] (remainders cropped)."""
+    h, w = _block_grid(a, f)
     b = a[: h * f, : w * f].reshape(h, f, w, f, *a.shape[2:])
     b = np.moveaxis(b, 2, 1)  # [h, w, f, f, ...]
     return b.reshape(h, w, f * f, *a.shape[2:])
@@ -84,9 +95,7 @@ def block_median(a: np.ndarray, f: int, min_valid: float = 0.25) -> np.ndarray:
 
 def block_centre(a: np.ndarray, f: int) -> np.ndarray:
     """[H // f, W // f, ...]: each block's pixel at (f // 2, f // 2) (labels: nearest, no mixing)."""
-    h, w = a.shape[0] // f, a.shape[1] // f
-    if h == 0 or w == 0:
-        raise ConfigError(f"a working factor of {f} leaves nothing of a {a.shape[1]} x {a.shape[0]} image")
+    h, w = _block_grid(a, f)
     return np.ascontiguousarray(a[f // 2: h * f: f, f // 2: w * f: f])
 
 

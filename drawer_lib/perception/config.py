@@ -3,6 +3,7 @@
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.io.working import check_max_side
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,6 @@ class DecomposeConfig:
             raise ConfigError("decompose: min_score and dup_overlap must be in (0, 1]")
         if self.band_px < 0:
             raise ConfigError(f"decompose.band_px = {self.band_px} must be >= 0")
-        if self.max_side is not None and self.max_side < 8:
-            raise ConfigError(f"decompose.max_side = {self.max_side} must be >= 8 px or null")
+        check_max_side("decompose.max_side", self.max_side)
         if self.max_faces < 100 or self.min_faces < 1:
             raise ConfigError("decompose: max_faces >= 100 and min_faces >= 1")

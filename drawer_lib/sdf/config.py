@@ -6,6 +6,7 @@ Lengths are metres; loss weights multiply the named loss terms (0 turns a term o
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.io.working import check_max_side
 from drawer_lib.sdf.monocal import MonoCalConfig
 
 
@@ -188,4 +189,4 @@ class SdfConfig:
 
     def __post_init__(self):
         _check(self.method in ("neural", "tsdf"), f"sdf.method = {self.method!r} must be neural or tsdf")
-        _check(self.max_side is None or self.max_side >= 8, f"sdf.max_side = {self.max_side} must be >= 8 px or null")
+        check_max_side("sdf.max_side", self.max_side)

@@ -44,8 +44,7 @@ class GeometryProbe:
         self.w2c = np.stack([cap.frames[i].w2c for i in cap.train])
         self.evaluator = MeshEvaluator(self.gt, cap.intrinsics, self.w2c, n_points=n_points)
         n_px = len(cap.test) * cap.intrinsics.width * cap.intrinsics.height
-        self.test_stride = max(pixel_stride, int(np.ceil(np.sqrt(n_px / max_test_rays))))
-        self.test = self._test_depth(self.test_stride)
+        self.test = self._test_depth(max(pixel_stride, int(np.ceil(np.sqrt(n_px / max_test_rays)))))
 
     def _test_depth(self, stride: int) -> TestDepth | None:
         if not self.cap.test:

@@ -4,6 +4,7 @@ import math
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.io.working import check_max_side
 from drawer_lib.splat.anchored import CLIP_MODES, AnchorBounds
 from drawer_lib.splat.strategy import MeshAnchoredStrategy
 
@@ -108,7 +109,6 @@ class AppearanceConfig:
             raise ConfigError(f"appearance.max_seconds = {self.max_seconds} must be > 0 or null (no cap)")
         if self.train_scale < 1:
             raise ConfigError(f"appearance.train_scale = {self.train_scale} must be an integer >= 1")
-        if self.max_side is not None and self.max_side < 8:
-            raise ConfigError(f"appearance.max_side = {self.max_side} must be >= 8 px or null")
+        check_max_side("appearance.max_side", self.max_side)
         if self.steps < 1 or self.max_faces < 10:
             raise ConfigError("appearance: need steps >= 1 and max_faces >= 10")

@@ -10,10 +10,10 @@ import trimesh
 from jaxtyping import Float
 
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
-from drawer_lib.geometry.camera import Camera, Intrinsics
+from drawer_lib.geometry.camera import Camera
 from drawer_lib.geometry.raycast import Raycaster
 from drawer_lib.io.capture import Capture
-from drawer_lib.io.working import working_factor
+from drawer_lib.io.working import scale_intrinsics, working_factor
 from drawer_lib.metrics.image import image_scores, psnr, ssim, ssim_target_stats
 from drawer_lib.paths import capture_name
 from drawer_lib.splat.anchored import AnchoredParams, FaceFrames, anchored_gaussians, bounds_violation, face_frames, init_anchored
@@ -54,11 +54,8 @@ class Scene:
 
 def downscale_camera(cam: Camera, f: int) -> Camera:
     """The camera of an image box-filtered by ``f`` x ``f`` (after cropping its right / bottom
-    to a multiple of ``f``): exact in the pixel-centre convention of :class:`Intrinsics`."""
-    if f == 1:
-        return cam
-    i = cam.intrinsics
-    return Camera(Intrinsics(i.fx / f, i.fy / f, i.cx / f, i.cy / f, i.width // f, i.height // f, i.dist), cam.w2c)
+    to a multiple of ``f``): exact in the pixel-centre convention of :class:`~drawer_lib.geometry.camera.Intrinsics`."""
+    return cam if f == 1 else Camera(scale_intrinsics(cam.intrinsics, f), cam.w2c)
 
 
 def downscale_images(images: Float[torch.Tensor, "C H W 3"], f: int) -> Float[torch.Tensor, "C h w 3"]:
