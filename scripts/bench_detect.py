@@ -18,6 +18,7 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split test --jobs 2
     python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
+    python scripts/bench_detect.py --split train --tag mw0 --set decompose.missing_weight=0   # a variant, same detections
 
 Writes ``<out>/<split>/summary.json``; each kitchen's folders stay under ``<out>`` (a rerun
 scores again without rebuilding the capture and geometry). Simulated input: rendered RGB-D.
@@ -66,13 +67,15 @@ OVERRIDES = ["scene=kitchen_small", "capture/detections=persistent", "capture/de
 
 
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
-            decisions: dict[str, dict] | None = None) -> dict:
+            decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "") -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
-    weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior."""
+    weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior.
+    ``overrides``: Hydra overrides of decompose and articulate; ``tag``: their outputs go to
+    ``by_detector/<model>-<tag>/``, reading the detections of ``by_detector/<model>/``."""
     import torch
 
     torch.set_num_threads(1)
-    cfg = compose_config(ROOT / "conf", OVERRIDES)
+    cfg = compose_config(ROOT / "conf", OVERRIDES + list(overrides))
     base = OmegaConf.to_container(cfg.scene, resolve=True)
     scene = kitchen_scene(base, split, k)
     sp = ScenePaths(out / split, f"kitchen_{k}")
@@ -89,14 +92,15 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
     row = {"kitchen": k}
     for model in models:
-        v = ScenePaths(sp.root / "by_detector", model)
+        d = ScenePaths(sp.root / "by_detector", model)  # the detections
+        v = ScenePaths(sp.root / "by_detector", f"{model}-{tag}" if tag else model)  # decompose, articulate
         t0 = time.perf_counter()
-        if decisions is None:
-            with stage_run("detect", v.detect, seed) as r:
+        if decisions is None and not (tag and d.metrics("detect").is_file()):
+            with stage_run("detect", d.detect, seed) as r:
                 r.metrics.update(run_detect(DetectConfig(model=model), cap, weights, r))
-        elif not v.metrics("decompose").is_file():
+        elif decisions is not None and not v.metrics("decompose").is_file():
             raise SystemExit(f"error: {v.metrics('decompose')}: missing; run this split with --decisions prior first")
-        vcap = apply_overlay(cap, v.file("detect", "index"))
+        vcap = apply_overlay(cap, d.file("detect", "index"))
         if decisions is None:
             with stage_run("decompose", v.stage_dir("decompose"), seed) as r:
                 r.metrics.update(run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), vcap, sp.mesh, r))
@@ -105,7 +109,7 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
             r.metrics.update(run_articulate(ac, vcap, v.stage_dir("decompose"), r,
                                             weights=ac.types.prior if decisions is None else decisions[model]))
         s = score_kitchen(sp, art / v.parts.name)
-        dm = read_json(v.metrics("detect"))
+        dm = read_json(d.metrics("detect"))
         row[model] = {"precision": s["precision"], "recall": s["recall"], "ea_score": s.get("ea_score"),
                       "n_pred": s["n_pred"] - s["n_ignored"], "n_gt": s["n_gt"], "n_correct": s["n_correct"],
                       "parts_2d_precision": dm.get("parts_2d_precision"), "parts_2d_recall": dm.get("parts_2d_recall"),
@@ -113,16 +117,18 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
     return row
 
 
-def fit_per_model(models: list[str], out: Path, kitchens: list[int]) -> tuple[dict[str, dict], dict[str, dict]]:
-    """(weights, fit record) per model, each fitted on that model's decisions in train ``kitchens``."""
-    cfg = compose_config(ROOT / "conf", OVERRIDES)
+def fit_per_model(models: list[str], out: Path, kitchens: list[int], overrides: tuple[str, ...] = (), tag: str = ""
+                  ) -> tuple[dict[str, dict], dict[str, dict]]:
+    """(weights, fit record) per model, each fitted on that model's decisions in train ``kitchens``
+    (those of the ``tag`` variant when given)."""
+    cfg = compose_config(ROOT / "conf", OVERRIDES + list(overrides))
     bc, ac = to_typed(BenchConfig, cfg.bench, "bench"), to_typed(ArticulateConfig, cfg.articulate, "articulate")
     weights, records = {}, {}
     for model in models:
         rows = []
         for k in kitchens:
             sp = ScenePaths(out / "train", f"kitchen_{k}")
-            dec = ScenePaths(sp.root / "by_detector", model).file("articulate", "decisions")
+            dec = ScenePaths(sp.root / "by_detector", f"{model}-{tag}" if tag else model).file("articulate", "decisions")
             if not dec.is_file():
                 raise SystemExit(f"error: {dec}: missing; run --split train --kitchens {' '.join(map(str, kitchens))} first")
             rows += labelled_fronts(f"train_{k}", dec, read_parts(sp.capture / capture_name("gt_parts")))
@@ -169,14 +175,24 @@ def main() -> None:
                     help="articulate's decision weights: the prior, or fitted per model on --fit-kitchens")
     ap.add_argument("--fit-kitchens", type=int, nargs="+", default=[16, 17, 18, 19],
                     help="train kitchens (already run with --split train) the fitted weights learn from")
+    ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="Hydra overrides of decompose and articulate (e.g. decompose.missing_weight=0)")
+    ap.add_argument("--tag", default="", help="write decompose and articulate to by_detector/<model>-TAG/ "
+                    "(the detections of by_detector/<model>/ are read; the summary is summary-TAG.json)")
     a = ap.parse_args()
+    if a.set and not a.tag:
+        raise SystemExit("error: --set needs a --tag, so that the variant does not overwrite the default's outputs")
+    if any(not o.split("=")[0].lstrip("+~").startswith(("decompose.", "articulate.")) for o in a.set):
+        raise SystemExit(f"error: --set {' '.join(a.set)}: only decompose.* and articulate.* keys vary here")
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
     if "builtin" in a.detect and not a.weights.is_file():
         raise SystemExit(f"error: {a.weights}: the built-in detector's weights are missing (run `dvc repro detector`)")
-    fitted, fit_rec = fit_per_model(a.detect, a.out, a.fit_kitchens) if a.decisions == "fitted" else (None, None)
+    fitted, fit_rec = (fit_per_model(a.detect, a.out, a.fit_kitchens, tuple(a.set), a.tag) if a.decisions == "fitted"
+                       else (None, None))
     with ProcessPoolExecutor(a.jobs) as ex:
-        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve(), fitted) for k in a.kitchens]
+        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve(), fitted, tuple(a.set), a.tag)
+                for k in a.kitchens]
         rows = []
         for f in futs:
             row = f.result()
@@ -184,10 +200,10 @@ def main() -> None:
             print(f"{a.split} {row['kitchen']:2d}: " + "   ".join(
                 f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
                 f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
-    summ = {"split": a.split, "kitchens": a.kitchens, "weights": a.decisions, "fit": fit_rec,
+    summ = {"split": a.split, "kitchens": a.kitchens, "weights": a.decisions, "fit": fit_rec, "set": a.set,
             "by_model": summarise(rows, a.detect), "rows": rows}
     (a.out / a.split).mkdir(parents=True, exist_ok=True)
-    name = "summary.json" if a.decisions == "prior" else "summary-fitted.json"
+    name = "summary" + ("" if a.decisions == "prior" else "-fitted") + (f"-{a.tag}" if a.tag else "") + ".json"
     (a.out / a.split / name).write_text(json.dumps(summ, indent=2))
 
     def f(x):

@@ -165,7 +165,12 @@ class SplitConfig:
     ``texture_k`` x the front's median such difference); a cut's strong boundary cells cover
     ``coverage`` of each third of the piece's span (with handles on both sides, its weak
     boundary or image line cells ``coverage_handles``), at least ``min_piece`` (m) from its edges, crossing no handle; at
-    most ``max_depth`` cuts deep."""
+    most ``max_depth`` cuts deep. ``depth_steps``: a front (or piece) is also cut where the
+    mesh under it steps by a sliding door's track offset (``joints.sliding_step``) along u,
+    profiled in bins of ``depth_bin`` m (:func:`~drawer_lib.articulation.gaps.depth_step_cuts`;
+    the mesh alone, no images needed). ``extent_steps``: also where the segment's outline steps
+    by ``extent_min_step`` m or more (an L-shaped segment is two fronts;
+    :func:`~drawer_lib.articulation.gaps.extent_step_cuts`)."""
 
     enabled: bool = True
     boundary_rate: float = 0.1
@@ -179,10 +184,18 @@ class SplitConfig:
     min_piece: float = 0.1
     max_depth: int = 6
     duplicate_iou: float = 0.5
+    depth_steps: bool = True
+    depth_bin: float = 0.02
+    extent_steps: bool = True
+    extent_min_step: float = 0.05
 
     def __post_init__(self):
         if not 0 < self.duplicate_iou <= 1:
             raise ConfigError(f"articulate.split.duplicate_iou = {self.duplicate_iou} must be in (0, 1]")
+        if not self.extent_min_step > 0:
+            raise ConfigError(f"articulate.split.extent_min_step = {self.extent_min_step} must be > 0 m")
+        if not 0 < self.depth_bin <= 0.1:
+            raise ConfigError(f"articulate.split.depth_bin = {self.depth_bin} must be in (0, 0.1] m")
         if self.step < 1 or self.max_depth < 0 or self.slack < 0:
             raise ConfigError("articulate.split: need step >= 1, slack >= 0 and max_depth >= 0")
         if not 0 < self.boundary_rate_handles <= self.boundary_rate <= 1:
@@ -212,7 +225,12 @@ class TypesConfig:
     below ``low_margin`` (log-odds) is marked ``low_margin`` in ``decisions.json`` and
     ``parts.json``, listed by the report and marked in the viewer. ``sliding_needs_track``: the
     score rule types a front sliding only when it has a partner on another track or a track
-    along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`)."""
+    along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`).
+    ``front_labels``: the labels, besides ``door_labels`` and ``drawer_labels``, a detector
+    gives a front (the built-in detector's and generic detections' ``front``); with
+    ``use_labels``, a planar segment more than half of whose label votes are other labels
+    (``box``, ``object``, ``kettle``: what a detector called an object) is a rigid object, not a
+    front (DRAWER takes its articulated parts from the masks of its front prompts alone)."""
 
     rule: str = "score"
     weights: str = "fitted"
@@ -224,6 +242,13 @@ class TypesConfig:
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
     drawer_labels: list[str] = field(default_factory=lambda: ["drawer"])
+    front_labels: list[str] = field(default_factory=lambda: ["front"])
+
+    def object_share(self, labels: dict[str, int]) -> float:
+        """The share of a segment's label votes ``labels`` that no front label holds (0 without votes)."""
+        total = sum(labels.values())
+        fronts = {x.strip().lower() for x in [*self.door_labels, *self.drawer_labels, *self.front_labels]}
+        return sum(v for k, v in labels.items() if k.strip().lower() not in fronts) / total if total else 0.0
 
     def __post_init__(self):
         if self.rule not in ("score", "handle"):

@@ -175,6 +175,198 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
     return out
 
 
+def _step_fit(x: np.ndarray, m: np.ndarray, k: int) -> tuple[float, float, float]:
+    """Least squares of the profile ``m`` [J] over ``x`` [J] by a line with a step before index
+    ``k``: m = a + b x + s [j >= k]; returns (s, b, residual sum of squares)."""
+    A = np.stack([np.ones_like(x), x, (np.arange(len(x)) >= k).astype(float)], axis=1)
+    coef, *_ = np.linalg.lstsq(A, m, rcond=None)
+    r = m - A @ coef
+    return float(coef[2]), float(coef[1]), float(r @ r)
+
+
+def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, float], min_piece: float,
+                    bin_m: float = 0.02, max_depth: int = 2, log: list | None = None) -> list[Front]:
+    """``front`` cut where the surface under it steps back or forward along u by a sliding
+    door's track offset: two panels on two tracks that the detector merged in every view give
+    one segment, one plane between them and one rectangle over both, but the mesh still shows
+    one panel ``step_range`` (m, lo, hi) proud of the other.
+
+    ``points`` [P, 3]: the segment's surface points; those over the rectangle within
+    ``step_range[1]`` + 2 cm of its plane are binned along u (``bin_m``), each bin's median
+    offset from the plane is the profile, and the profile is fitted by a line with one step (a
+    line, since the plane fitted over two offset panels is yawed). The best step over every
+    position is a cut when its size is within ``step_range``, it lies at least ``min_piece``
+    from the piece's ends (the recessed panel of a frame-and-panel door steps next to its stile,
+    well inside that), the residual RMS is under a quarter of the step (two flat panels), and the
+    step has the same sign and at least half of ``step_range[0]`` in each third of the height
+    (it runs the whole height: a handle or a shelf behind glass does not). Each side is cut again
+    up to ``max_depth``. Pieces keep the front's axes and take their own plane offset (the
+    median of their points). ``[front]`` without a step. ``log`` (a list) receives each cut's
+    evidence (position along u, step, residual RMS, the least step over the thirds; m), so
+    ``decisions.json`` shows how far each test cleared its threshold."""
+    c, u, v, n = np.asarray(front.center), np.asarray(front.u), front.v, np.asarray(front.normal)
+    w, h = front.size
+    d = np.asarray(points, float) - c
+    pu, pv, pn = d @ u, d @ v, d @ n
+    ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= step_range[1] + 0.02) & np.isfinite(pn)
+    pu, pv, pn = pu[ok], pv[ok], pn[ok]
+
+    def cut(a: float, b: float, depth: int) -> list[tuple[float, float]]:
+        sel = (pu >= a) & (pu < b)
+        if depth <= 0 or b - a < 2 * min_piece or sel.sum() < 20:
+            return [(a, b)]
+        x_all, n_all, v_all = pu[sel], pn[sel], pv[sel]
+        edges = np.arange(a, b + 0.5 * bin_m, bin_m)
+        idx = np.clip(np.searchsorted(edges, x_all, side="right") - 1, 0, len(edges) - 2)
+        xs, ms = [], []
+        for j in range(len(edges) - 1):
+            nj = n_all[idx == j]
+            if len(nj) >= 3:
+                xs.append(0.5 * (edges[j] + edges[j + 1]))
+                ms.append(float(np.median(nj)))
+        x, m = np.asarray(xs), np.asarray(ms)
+        if len(x) < 6:
+            return [(a, b)]
+        best = min(((k, *_step_fit(x, m, k)) for k in range(2, len(x) - 1)), key=lambda t: t[3])
+        k, step, slope, sse = best
+        at = 0.5 * (x[k - 1] + x[k])
+        if not (step_range[0] <= abs(step) <= step_range[1] and min(at - a, b - at) >= min_piece
+                and np.sqrt(sse / len(x)) <= abs(step) / 4):
+            return [(a, b)]
+        flat = n_all - slope * x_all  # the yaw taken out
+        least = abs(step)
+        for t0, t1 in ((-h / 2, -h / 6), (-h / 6, h / 6), (h / 6, h / 2)):
+            in_t = (v_all >= t0) & (v_all <= t1)
+            lo, hi = flat[in_t & (x_all < at)], flat[in_t & (x_all >= at)]
+            if len(lo) >= 5 and len(hi) >= 5:
+                st = float(np.median(hi) - np.median(lo))
+                if np.sign(st) != np.sign(step) or abs(st) < step_range[0] / 2:
+                    return [(a, b)]
+                least = min(least, abs(st))
+        if log is not None:
+            log.append({"cut": "depth_step", "at_u": round(float(at), 4), "step": round(step, 4),
+                        "rms": round(float(np.sqrt(sse / len(x))), 4), "least_third": round(least, 4)})
+        return cut(a, at, depth - 1) + cut(at, b, depth - 1)
+
+    spans = cut(-w / 2, w / 2, max_depth)
+    if len(spans) == 1:
+        return [front]
+    out = []
+    for a, b in spans:
+        sel = (pu >= a) & (pu < b)
+        off = float(np.median(pn[sel])) if sel.any() else 0.0
+        centre = c + 0.5 * (a + b) * u + off * n
+        out.append(Front(tuple(centre.tolist()), front.normal, front.u, (float(b - a), float(h))))
+    return out
+
+
+def _change_point(x: np.ndarray, m: np.ndarray) -> tuple[int, float, float]:
+    """The best split of the profile ``m`` [J] (over ``x`` [J], sorted) into two constant
+    runs: (index k of the first value of the second run, the step median(right) -
+    median(left), the larger of the two runs' median absolute deviations)."""
+    best = (-1, 0.0, np.inf, np.inf)
+    for k in range(2, len(m) - 1):
+        lo, hi = m[:k], m[k:]
+        ml, mh = float(np.median(lo)), float(np.median(hi))
+        cost = float(np.abs(lo - ml).sum() + np.abs(hi - mh).sum())
+        if cost < best[3]:
+            spread = max(float(np.median(np.abs(lo - ml))), float(np.median(np.abs(hi - mh))))
+            best = (k, mh - ml, spread, cost)
+    return best[0], best[1], best[2]
+
+
+def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray, scene_segment: np.ndarray,
+                     segment: int, min_step: float, min_piece: float, bin_m: float = 0.02, max_depth: int = 2,
+                     plane_tol: float = 0.005, log: list | None = None) -> list[Front]:
+    """``front`` cut where its segment's outline steps: a front is a rectangle, so a segment
+    shaped like an L (a door merged with a shorter door or a drawer stack beside it, by a
+    detector that merged them in every view) is two fronts side by side.
+
+    ``points`` [P, 3]: the segment's surface points within 5 cm of the front's plane, binned
+    along u (``bin_m``); per bin the top and the bottom of the segment (the 98th and 2nd
+    percentiles of v). The best change point of either profile (two constant runs) is a cut
+    when the step is at least ``min_step``, each run is straight (median absolute deviation
+    under a quarter of the step), it lies at least ``min_piece`` from the piece's ends, and the
+    notch (the corner the shorter side leaves empty) is seen and is something else:
+    ``scene_points`` [Q, 3] (the whole mesh; ``scene_segment`` [Q]: the segment each lies on,
+    -1 for none) has points over it, and at least two thirds of them lie on another segment
+    than ``segment`` or off the plane (more than ``plane_tol`` behind it, or in front by up to
+    3 cm: a neighbouring front, a recess, the wall above a shorter cabinet). A notch of the
+    front's own plane that no segment holds is the same front, part of which decompose gave
+    no segment; an object in front of a door hides its corner. Pieces span their own part of u
+    and their own points' height (clipped to the front's); each side is cut again up to
+    ``max_depth``. ``[front]`` otherwise. ``log`` (a list) receives each cut's evidence (which
+    outline, position along u, step, spread (m), the notch's share of other surfaces)."""
+    c, u, v, n = np.asarray(front.center), np.asarray(front.u), front.v, np.asarray(front.normal)
+    w, h = front.size
+
+    def local(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        d = np.asarray(p, float) - c
+        return d @ u, d @ v, d @ n
+
+    pu, pv, pn = local(points)
+    ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= 0.05)
+    pu, pv = pu[ok], pv[ok]
+    su, sv, sn = local(scene_points)
+
+    def height(a: float, b: float) -> tuple[float, float]:
+        sel = (pu >= a) & (pu < b)
+        if sel.sum() < 10:
+            return -h / 2, h / 2
+        return max(float(np.percentile(pv[sel], 1)), -h / 2), min(float(np.percentile(pv[sel], 99)), h / 2)
+
+    def cut(a: float, b: float, depth: int) -> list[tuple[float, float]]:
+        sel = (pu >= a) & (pu < b)
+        if depth <= 0 or b - a < 2 * min_piece or sel.sum() < 50:
+            return [(a, b)]
+        x_all, v_all = pu[sel], pv[sel]
+        edges = np.arange(a, b + 0.5 * bin_m, bin_m)
+        idx = np.clip(np.searchsorted(edges, x_all, side="right") - 1, 0, len(edges) - 2)
+        xs, tops, bots = [], [], []
+        for j in range(len(edges) - 1):
+            vj = v_all[idx == j]
+            if len(vj) >= 10:
+                xs.append(0.5 * (edges[j] + edges[j + 1]))
+                tops.append(float(np.percentile(vj, 98)))
+                bots.append(float(np.percentile(vj, 2)))
+        x = np.asarray(xs)
+        if len(x) < 6:
+            return [(a, b)]
+        for prof, is_top in ((np.asarray(tops), True), (np.asarray(bots), False)):
+            k, step, spread = _change_point(x, prof)
+            if k < 0 or abs(step) < min_step or spread > abs(step) / 4:
+                continue
+            at = 0.5 * (x[k - 1] + x[k])
+            if min(at - a, b - at) < min_piece:
+                continue
+            # the notch: over the shorter side, between its edge and the longer side's
+            lo_side = (step > 0) == is_top  # the side (left of ``at``) whose outline is short
+            nu0, nu1 = (a, at) if lo_side else (at, b)
+            e0, e1 = float(np.median(prof[:k])), float(np.median(prof[k:]))
+            nv0, nv1 = sorted((e0, e1))
+            nv0, nv1 = nv0 + 0.01, nv1 - 0.01
+            in_notch = (su >= nu0 + 0.01) & (su < nu1 - 0.01) & (sv >= nv0) & (sv <= nv1) & (np.abs(sn) < 0.6)
+            other = ((scene_segment[in_notch] >= 0) & (scene_segment[in_notch] != segment)) | (
+                (np.abs(sn[in_notch]) > plane_tol) & (sn[in_notch] <= 0.03))
+            if in_notch.sum() < 10 or other.mean() < 2 / 3:
+                continue
+            if log is not None:
+                log.append({"cut": "outline_step", "outline": "top" if is_top else "bottom", "at_u": round(float(at), 4),
+                            "step": round(step, 4), "spread": round(spread, 4), "notch_other": round(float(other.mean()), 3)})
+            return cut(a, at, depth - 1) + cut(at, b, depth - 1)
+        return [(a, b)]
+
+    spans = cut(-w / 2, w / 2, max_depth)
+    if len(spans) == 1:
+        return [front]
+    out = []
+    for a, b in spans:
+        v0, v1 = height(a, b)
+        centre = c + 0.5 * (a + b) * u + 0.5 * (v0 + v1) * v
+        out.append(Front(tuple(centre.tolist()), front.normal, front.u, (float(b - a), float(v1 - v0))))
+    return out
+
+
 SIDES = ("left", "right", "bottom", "top")
 
 

@@ -27,7 +27,7 @@ from drawer_lib.articulation.handles import colour_handle, front_handles
 from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, interaction_evidence
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
 from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_extent, rail_run
-from drawer_lib.articulation.gaps import border_lines, split_front
+from drawer_lib.articulation.gaps import border_lines, depth_step_cuts, extent_step_cuts, split_front
 from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts
 from drawer_lib.articulation.scoring import Evidence
 from drawer_lib.articulation.vocab import Decision, Handle
@@ -55,10 +55,16 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     fc = cfg.fronts
     sin_v = np.sin(np.deg2rad(fc.vertical_deg))
     fits: list[tuple[Segment, Front, dict]] = []
+    centres = np.asarray(mesh.triangles_center)
+    owner = np.full(len(centres), -1, np.int64)  # the segment of each face
     for s in segs:
-        if not s.planar:
+        owner[s.faces] = s.id
+    for s in segs:
+        obj = cfg.types.object_share(s.labels) if cfg.types.use_labels else 0.0
+        if not s.planar or obj > 0.5:
             parts.append(rigid_part(s, mesh, sum(p.kind == "rigid" for p in parts)))
-            report.append({"segment": s.id, "family": "rigid", "reason": "not planar"})
+            report.append({"segment": s.id, "family": "rigid", "reason": "not planar" if not s.planar else
+                           f"labelled an object by {obj:.0%} of its label votes ({', '.join(sorted(s.labels))})"})
             continue
         fitted = fit_front(mesh, s, cam_centers, fc)
         if fitted is None:
@@ -75,17 +81,38 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
             stems = {st for st, _ in s.matched}
             rf = rectify_front(front, views, cfg.rectify, np.array([v.stem in stems for v in views]))
             pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views)
+        cuts: list[dict] = []  # the evidence of the mesh's cuts
+        if cfg.split.depth_steps or cfg.split.extent_steps:
+            pts, _ = sample_points(mesh, s.faces, fc.sample_per_m2, seed=0)
+            if cfg.split.depth_steps:
+                pieces = [q for p in pieces for q in depth_step_cuts(p, pts, tuple(cfg.joints.sliding_step),
+                                                                       cfg.split.min_piece, cfg.split.depth_bin, log=cuts)]
+            if cfg.split.extent_steps:
+                pieces = [q for p in pieces for q in extent_step_cuts(p, pts, centres, owner, s.id, cfg.split.extent_min_step,
+                                                                        cfg.split.min_piece, cfg.split.depth_bin, log=cuts)]
         for k, piece in enumerate(pieces):
             w, h = piece.size
             if min(w, h) < fc.min_size or max(w, h) > fc.max_size:
                 report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
                 continue
-            info = {"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
+            info = ({"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
+                    | ({"mesh_cuts": cuts} if cuts else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
                          min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg)
     return [(s, f, info) for (s, _, info), f in zip(fits, fronts)]
+
+
+def piece_points(points: np.ndarray, front: Front, piece: bool) -> np.ndarray:
+    """A front's own points [P', 3] of its segment's ``points`` [P, 3]: all of them for a whole
+    segment; for a ``piece`` of a cut segment those over its rectangle, so that the step between
+    two pieces of one segment (:func:`~drawer_lib.articulation.joints.sliding_partners`) is
+    measured on each one's own surface, not twice on the same points."""
+    if not piece:
+        return points
+    d = points - np.asarray(front.center)
+    return points[(np.abs(d @ np.asarray(front.u)) <= front.size[0] / 2) & (np.abs(d @ front.v) <= front.size[1] / 2)]
 
 
 def drop_duplicate_pieces(fits: list[tuple[Segment, Front, dict]], min_iou: float, report: list[dict]
@@ -144,7 +171,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                                      cfg.handles, cfg.types.edge_frac,
                                      max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views,
                                      image_cells, colour)
-    seg_pts = [np.asarray(mesh.triangles_center)[s.faces] for s, _, _ in fits]
+    seg_pts = [piece_points(np.asarray(mesh.triangles_center)[s.faces], f, "piece" in info) for s, f, info in fits]
     partner = sliding_partners(fronts, handles, cfg.joints, seg_pts)
     floor_z = float(np.percentile(np.asarray(mesh.vertices)[:, 2], 1.0)) if len(mesh.vertices) else 0.0
     neighbours = front_neighbours(fronts, max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap),

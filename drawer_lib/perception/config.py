@@ -48,6 +48,13 @@ class DecomposeConfig:
     within ``band_px`` of the silhouette's border; ``score`` = median best IoU, kept when
     >= ``min_score`` over >= ``min_frames`` frames. Greedy by score: a candidate more than
     ``dup_overlap`` of which better segments already hold is a duplicate.
+    Missed views: a frame that sees both faces of an edge but none of whose masks holds either,
+    or whose masks cover less than ``missing_cover`` of a candidate's silhouette, is a view
+    where the detector found nothing; it counts ``missing_weight`` of a frame in the graph's
+    rate and in the score's median (1: as a frame that keeps the faces apart, scoring 0;
+    0: no evidence). A detector misses the same front in many views (a low score, a dark
+    corner), so a front detected in a third of the views would otherwise never become a
+    segment; a candidate still needs masks in ``min_detected`` of the frames that see it.
     ``grow``: each segment is then completed from the whole (un-eroded) masks it matched, by a
     per-face majority over frames (:func:`~drawer_lib.perception.decompose.grow_segments`).
     Normal consistency: a segment is ``planar`` when >= ``planar_frac`` of its area is within
@@ -72,6 +79,9 @@ class DecomposeConfig:
     band_px: int = 2
     min_score: float = 0.55
     min_frames: int = 2
+    missing_weight: float = 0.0
+    missing_cover: float = 0.1
+    min_detected: float = 0.1
     dup_overlap: float = 0.3
     grow: bool = True
     planar_deg: float = 30.0
@@ -91,6 +101,9 @@ class DecomposeConfig:
             raise ConfigError(f"decompose.louvain_max_sweeps = {self.louvain_max_sweeps} must be >= 1")
         if not 0 < self.min_score <= 1 or not 0 < self.dup_overlap <= 1:
             raise ConfigError("decompose: min_score and dup_overlap must be in (0, 1]")
+        if not 0 <= self.missing_weight <= 1 or not 0 <= self.missing_cover <= 1 or not 0 <= self.min_detected <= 1:
+            raise ConfigError(f"decompose: missing_weight = {self.missing_weight}, missing_cover = {self.missing_cover} "
+                              f"and min_detected = {self.min_detected} must lie in [0, 1]")
         if self.band_px < 0:
             raise ConfigError(f"decompose.band_px = {self.band_px} must be >= 0")
         check_max_side("decompose.max_side", self.max_side)

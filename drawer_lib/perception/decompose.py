@@ -7,8 +7,9 @@
    fewer than ``min_cooccur`` masks are dropped, and so are sharp creases.
 3. Louvain communities (seeded, bounded by work) at several resolutions give overlapping candidates.
 4. Each candidate is rendered back into every frame that sees it and compared with that frame's
-   masks: ``score`` = median over frames of the best IoU. A missed or merged detection lowers
-   a frame or two, not the median.
+   masks: ``score`` = median over frames of the best IoU. A merged detection lowers a frame or
+   two, not the median; a frame whose masks miss the candidate altogether is no evidence
+   either way (``missing_weight``), since a detector misses the same front in many views.
 5. Greedy selection by score removes duplicates (the same front found at several resolutions);
    normal consistency marks planar segments (fronts) against the rest (objects).
 
@@ -136,10 +137,16 @@ def lift_masks(detections: list[tuple[np.ndarray, list[dict]]], views: MeshViews
 
 def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, masks: list[MaskRecord],
                        visible: np.ndarray, min_cooccur: int, min_rate: float, max_dihedral: float,
-                       separation: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                       separation: bool = False, missing_weight: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """(edges [E', 2], weights [E']): adjacent face pairs held together by >= ``min_cooccur``
     masks and in >= ``min_rate`` of the frames that see both (``visible`` [F]: frames seeing each
     face), with a dihedral angle <= ``max_dihedral`` deg. Weight = that rate.
+
+    ``missing_weight``: how much a frame that sees both faces but holds neither in any mask
+    counts in the rate's denominator. 1 counts it as a frame that keeps them apart; 0 as no
+    evidence either way (the detector missed the front there): a front detected in a quarter
+    of the views is then held together as firmly as one detected in all, while a border is
+    still cut by the frames whose masks stop at it.
 
     ``separation``: the rate at which the two faces lie in *different* masks of one frame is
     subtracted from the rate before the threshold. Along the border of a thin front (a drawer
@@ -150,6 +157,7 @@ def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, ma
     most one mask per frame."""
     w = np.zeros(len(edges), np.int64)
     sep = np.zeros(len(edges), np.int64)
+    covered = np.zeros(len(edges), np.int64)  # frames with a mask on either face
     by_view: dict[int, list[MaskRecord]] = {}
     for r in masks:
         by_view.setdefault(r.view, []).append(r)
@@ -160,9 +168,11 @@ def cooccurrence_graph(n_faces: int, edges: np.ndarray, dihedral: np.ndarray, ma
         a, b = owner[edges[:, 0]], owner[edges[:, 1]]
         w += (a >= 0) & (a == b)
         sep += (a >= 0) & (b >= 0) & (a != b)
+        covered += (a >= 0) | (b >= 0)
         for r in recs:
             owner[r.faces] = -1
-    denom = np.maximum(np.minimum(visible[edges[:, 0]], visible[edges[:, 1]]), 1)
+    both = np.minimum(visible[edges[:, 0]], visible[edges[:, 1]])
+    denom = np.maximum(both - (1.0 - missing_weight) * np.maximum(both - covered, 0), 1)
     rate = (w - sep * separation) / denom
     keep = (w >= min_cooccur) & (rate >= min_rate) & (dihedral <= max_dihedral)
     return edges[keep], rate[keep]
@@ -240,11 +250,33 @@ def tolerant_ious(sil: np.ndarray, lab: np.ndarray, sizes: np.ndarray, band_px: 
     return inter / np.maximum(int(sil.sum()) + sizes - inter, 1)
 
 
+def weighted_median(x: np.ndarray, w: np.ndarray) -> float:
+    """The weighted median of ``x`` [N] with weights ``w`` [N] >= 0: the smallest value whose
+    cumulative weight reaches half the total, or the mean of it and the next when it reaches
+    exactly half (so equal weights give ``np.median``). NaN when the weights sum to 0."""
+    x, w = np.asarray(x, float), np.asarray(w, float)
+    if not len(x) or w.sum() <= 0:
+        return float("nan")
+    o = np.argsort(x, kind="stable")
+    xs, cw = x[o], np.cumsum(w[o])
+    half = 0.5 * cw[-1]
+    i = int(np.searchsorted(cw, half))
+    if cw[i] == half and i + 1 < len(xs):
+        return float(0.5 * (xs[i] + xs[i + 1 + int(np.searchsorted(cw[i + 1:], half, side="right"))]))
+    return float(xs[i])
+
+
 def backprojection_scores(cands: list[np.ndarray], views: MeshViews, label_maps: list[np.ndarray],
                           masks: list[MaskRecord], min_px: int, band_px: int = 0,
-                          progress=lambda it, **kw: it) -> list[tuple[float, int, Counter, list[tuple[int, int]]]]:
-    """Per candidate: (median over frames of the best mask IoU (:func:`tolerant_ious`), frames
-    used, label votes, [(view, mask id)] of the masks it matches with IoU >= 0.5)."""
+                          progress=lambda it, **kw: it, missing_weight: float = 1.0, missing_cover: float = 0.1
+                          ) -> list[tuple[float, int, Counter, list[tuple[int, int]], int]]:
+    """Per candidate: (score, frames that scored it, label votes, [(view, mask id)] of the masks
+    it matches with IoU >= 0.5, frames that see it). Score: the weighted median over the frames
+    that see it of the best mask IoU (:func:`tolerant_ious`); a frame in which masks cover less
+    than ``missing_cover`` of the silhouette (the detector found nothing there) counts with
+    weight ``missing_weight``, every other frame with weight 1. ``missing_weight`` 1 is the plain
+    median over all frames; 0 leaves the missed frames out (and out of the count of frames that
+    scored it)."""
     by_view: dict[int, list[MaskRecord]] = {}
     for r in masks:
         by_view.setdefault(r.view, []).append(r)
@@ -256,23 +288,29 @@ def backprojection_scores(cands: list[np.ndarray], views: MeshViews, label_maps:
     for f in progress(cands, desc="back-projection", total=len(cands)):
         member = np.zeros(F, bool)
         member[f] = True
-        ious, votes, matched = [], Counter(), []
+        ious, wts, votes, matched = [], [], Counter(), []
         for t in range(len(views.frames)):
             sil = views.silhouette(t, member)
-            if int(sil.sum()) < min_px:
+            n_sil = int(sil.sum())
+            if n_sil < min_px:
                 continue
             ids = np.array([r.det_id for r in by_view.get(t, [])], np.int64)
             if not len(ids):
                 ious.append(0.0)
+                wts.append(missing_weight)
                 continue
+            cover = np.bincount(labs[t][sil], minlength=len(sizes[t]))[ids].sum() / n_sil
             iou = tolerant_ious(sil, labs[t], sizes[t], band_px)[ids]
             j = int(iou.argmax())
             best = float(iou[j])
             ious.append(best)
+            wts.append(missing_weight if cover < missing_cover else 1.0)
             if best >= 0.5:
                 votes[label_of[(t, int(ids[j]))]] += 1
                 matched.append((t, int(ids[j])))
-        res.append((float(np.median(ious)) if ious else 0.0, len(ious), votes, matched))
+        w = np.asarray(wts)
+        score = weighted_median(np.asarray(ious), w) if w.sum() > 0 else 0.0
+        res.append((score, int((w > 0).sum()), votes, matched, len(ious)))
     return res
 
 
@@ -294,14 +332,16 @@ def face_geometry(mesh: trimesh.Trimesh, faces: np.ndarray, planar_deg: float) -
 
 def select_segments(cands: list[np.ndarray], scores: list[tuple], mesh: trimesh.Trimesh,
                     cfg: DecomposeConfig) -> list[Segment]:
-    """Greedy by score (then size): a candidate of which more than ``dup_overlap`` is already
-    taken by better segments is a duplicate; otherwise it is accepted without the taken faces."""
+    """Greedy by score (then size) over the candidates scored (:func:`backprojection_scores`) at
+    least ``min_score`` in at least ``min_frames`` frames and ``min_detected`` of the frames that
+    see them: a candidate of which more than ``dup_overlap`` is already taken by better segments
+    is a duplicate; otherwise it is accepted without the taken faces."""
     order = sorted(range(len(cands)), key=lambda k: (-scores[k][0], -len(cands[k])))
     taken = np.full(len(mesh.faces), -1, np.int64)
     segs: list[Segment] = []
     for k in order:
-        s, support, votes = scores[k][:3]
-        if s < cfg.min_score or support < cfg.min_frames:
+        s, support, votes, _, seen = scores[k]
+        if s < cfg.min_score or support < cfg.min_frames or support < cfg.min_detected * seen:
             continue
         f = cands[k]
         owners = taken[f]
@@ -371,12 +411,13 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
     edges, dih = adjacency_edges(views.mesh)
     visible = views.face_frames()
     ge, gw = cooccurrence_graph(views.n_faces, edges, dih, masks, visible, cfg.min_cooccur, cfg.min_rate,
-                                cfg.max_dihedral, cfg.separation)
+                                cfg.max_dihedral, cfg.separation, cfg.missing_weight)
     lv: dict = {}
     cands = louvain_candidates(views.n_faces, ge, gw, cfg.resolutions, cfg.min_faces, cfg.seed, cfg.louvain_max_sweeps, lv,
                                cfg.component_rates)
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
-    scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress)
+    scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress,
+                                   cfg.missing_weight, cfg.missing_cover)
     segs = select_segments(cands, scores, views.mesh, cfg)
     for sg in segs:
         sg.matched = [(cap.frames[views.frames[t]].stem, d) for t, d in scores[sg.source_candidate][3]]

@@ -153,3 +153,12 @@ def test_cases_follow_the_config():
     cfg = dataclasses.replace(CFG, types=dataclasses.replace(CFG.types, rule="handle", use_labels=False))
     got = {r["name"]: r["passed"] for r in run_cases(cfg, PRIOR)}
     assert got["microwave_door_yaw_30"] and got["full_height_door"]
+
+
+def test_object_share_of_label_votes():
+    t = TypesConfig()
+    assert t.object_share({}) == 0.0  # no votes (the geometric path): not an object
+    assert t.object_share({"drawer": 3, "door": 2, "front": 1, "Cabinet Door ": 1}) == 0.0
+    assert t.object_share({"box": 4}) == 1.0
+    assert t.object_share({"object": 1, "front": 3}) == 0.25
+    assert TypesConfig(front_labels=[]).object_share({"front": 2, "drawer": 2}) == 0.5

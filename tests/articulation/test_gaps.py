@@ -123,3 +123,149 @@ def test_a_piece_that_repeats_another_segments_front_is_dropped():
     kept = drop_duplicate_pieces(fits, 0.5, report)
     assert [(s.id, info.get("piece")) for s, _, info in kept] == [(1, None), (2, 1)]  # the better supported piece stays
     assert [(r["segment"], r["piece"]) for r in report] == [(2, 0), (3, 0)]
+
+
+# --- depth steps: two sliding panels merged into one front -------------------------------------
+
+def _panel_points(rng, spans, h=0.7, noise=0.002, yaw=0.0, n_per=4000):
+    """Points [P, 3] of panels on the front plane x-z (u = x, v = z, normal = -y toward the
+    camera): ``spans`` [(u0, u1, offset toward the camera (m))]; ``yaw``: the fitted plane's tilt
+    (offset grows by yaw x u)."""
+    out = []
+    for u0, u1, off in spans:
+        u = rng.uniform(u0, u1, n_per)
+        v = rng.uniform(-h / 2, h / 2, n_per)
+        n = off + yaw * u + rng.normal(0, noise, n_per)
+        out.append(np.stack([u, -n, v], axis=1))
+    return np.concatenate(out)
+
+
+def _front(w=1.0, h=0.7):
+    return Front((0.0, 0.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (w, h))
+
+
+def _cut(pts, front=None, **kw):
+    from drawer_lib.articulation.gaps import depth_step_cuts
+
+    return depth_step_cuts(front or _front(), pts, (0.008, 0.06), 0.1, **kw)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.02])
+def test_a_track_offset_cuts_a_merged_sliding_pair(yaw):
+    rng = np.random.default_rng(0)
+    pts = _panel_points(rng, [(-0.5, 0.01, 0.022), (0.01, 0.5, 0.0)], yaw=yaw)
+    pieces = _cut(pts)
+    assert len(pieces) == 2
+    left, right = sorted(pieces, key=lambda f: f.center[0])
+    assert abs(left.size[0] - 0.51) < 0.03 and abs(right.size[0] - 0.49) < 0.03
+    assert abs(left.size[0] + right.size[0] - 1.0) < 1e-9
+    # each piece takes its own plane: the outer panel 22 mm nearer the camera (-y), the yaw's mean aside
+    assert abs((-left.center[1]) - (-right.center[1]) - (0.022 - yaw * 0.5)) < 0.004
+
+
+def test_three_panels_on_two_tracks_give_three_pieces():
+    rng = np.random.default_rng(1)
+    pts = _panel_points(rng, [(-0.75, -0.25, 0.0), (-0.25, 0.25, 0.02), (0.25, 0.75, 0.0)])
+    assert len(_cut(pts, _front(w=1.5))) == 3
+
+
+@pytest.mark.parametrize("case", ["flat", "shaker", "top_third_only", "too_deep", "near_edge"])
+def test_what_is_not_a_track_offset_does_not_cut(case):
+    rng = np.random.default_rng(2)
+    if case == "flat":
+        pts = _panel_points(rng, [(-0.5, 0.5, 0.0)], noise=0.004)
+    elif case == "shaker":  # a frame-and-panel door: 6 cm stiles and rails 10 mm proud of the panel
+        pts = np.concatenate([_panel_points(rng, [(-0.5, -0.44, 0.01), (0.44, 0.5, 0.01)]),
+                              _panel_points(rng, [(-0.44, 0.44, 0.0)], h=0.58)])
+    elif case == "top_third_only":  # e.g. a shelf seen through an open top half, not a panel edge
+        top = _panel_points(rng, [(-0.5, 0.0, 0.03)], h=0.2)
+        top[:, 2] += 0.25
+        pts = np.concatenate([_panel_points(rng, [(-0.5, 0.5, 0.0)]), top])
+        pts = pts[~((pts[:, 0] < 0) & (pts[:, 2] > 0.15) & (np.abs(pts[:, 1]) < 0.005))]
+    elif case == "too_deep":  # a door beside a niche 8 cm deep
+        pts = _panel_points(rng, [(-0.5, 0.0, 0.0), (0.0, 0.5, -0.08)])
+    else:  # a step 5 cm from the end: less than min_piece
+        pts = _panel_points(rng, [(-0.5, -0.45, 0.02), (-0.45, 0.5, 0.0)])
+    assert len(_cut(pts)) == 1
+
+
+def test_depth_steps_degenerate_input():
+    f = _front()
+    assert _cut(np.zeros((0, 3)), f) == [f]
+    rng = np.random.default_rng(3)
+    pts = _panel_points(rng, [(-0.5, 0.01, 0.022), (0.01, 0.5, 0.0)])
+    pts[::7] = np.nan  # NaN points are not data
+    assert len(_cut(pts)) == 2
+    tiny = Front((0.0, 0.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.15, 0.15))
+    assert _cut(pts, tiny) == [tiny]
+
+
+def test_the_pieces_of_a_merged_sliding_pair_are_partners():
+    """The two pieces of one segment measure their step on their own points: with the
+    segment's points shared, the step between them would read 0 and the pair would be doors."""
+    from drawer_lib.articulation.config import JointsConfig
+    from drawer_lib.articulation.infer import piece_points
+    from drawer_lib.articulation.joints import sliding_partners
+
+    rng = np.random.default_rng(4)
+    pts = _panel_points(rng, [(-0.5, 0.01, 0.022), (0.01, 0.5, 0.0)], n_per=1500)
+    pieces = _cut(pts)
+    assert len(pieces) == 2
+    cfg = JointsConfig()
+    own = [piece_points(pts, f, True) for f in pieces]
+    assert sliding_partners(pieces, [None, None], cfg, own) == {0: (1, pytest.approx(0.0, abs=1e-9)),
+                                                                1: (0, pytest.approx(0.0, abs=1e-9))}
+    assert sliding_partners(pieces, [None, None], cfg, [pts, pts]) == {}
+
+
+# --- outline steps: an L-shaped segment is two fronts --------------------------------------------
+
+def _rect_points(rng, u0, u1, v0, v1, off=0.0, n_per_m2=40000):
+    n = max(int((u1 - u0) * (v1 - v0) * n_per_m2), 1)
+    u, v = rng.uniform(u0, u1, n), rng.uniform(v0, v1, n)
+    return np.stack([u, -np.full(n, off) - rng.normal(0, 0.001, n), v], axis=1)  # x = u, -y = toward the camera, z = v
+
+
+def _l_shape(rng):
+    """A door 0.45 x 0.66 (left) merged with a door 0.40 x 0.82 (right), bottoms level; the
+    front's rectangle is their bounding box 0.85 x 0.82 centred at the origin."""
+    seg = np.concatenate([_rect_points(rng, -0.425, 0.0, -0.41, 0.25), _rect_points(rng, 0.0, 0.425, -0.41, 0.41)])
+    return seg, Front((0.0, 0.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.85, 0.82))
+
+
+@pytest.mark.parametrize("notch", ["wall_behind", "another_segment", "same_plane_no_segment", "object_in_front", "none"])
+def test_an_l_shaped_segment_is_cut_where_its_outline_steps(notch):
+    from drawer_lib.articulation.gaps import extent_step_cuts
+
+    rng = np.random.default_rng(5)
+    seg, front = _l_shape(rng)
+    scene = [seg]
+    owner = [np.full(len(seg), 1)]  # the segment's own id: 1
+    if notch != "none":
+        off = {"wall_behind": -0.3, "another_segment": 0.0, "same_plane_no_segment": 0.0, "object_in_front": 0.12}[notch]
+        pts = _rect_points(rng, -0.425, 0.0, 0.25, 0.41, off)
+        scene.append(pts)
+        owner.append(np.full(len(pts), 5 if notch == "another_segment" else -1))
+    pieces = extent_step_cuts(front, seg, np.concatenate(scene), np.concatenate(owner), 1, 0.05, 0.1)
+    if notch in ("wall_behind", "another_segment"):
+        assert len(pieces) == 2
+        left, right = sorted(pieces, key=lambda f: f.center[0])
+        assert left.size[0] == pytest.approx(0.425, abs=0.021) and left.size[1] == pytest.approx(0.66, abs=0.02)
+        assert right.size[0] == pytest.approx(0.425, abs=0.021) and right.size[1] == pytest.approx(0.82, abs=0.02)
+        assert left.center[2] == pytest.approx(-0.08, abs=0.01)  # the short door keeps its own height
+    else:  # the front's own surface that decompose left out, an object hiding a corner, nothing seen
+        assert pieces == [front]
+
+
+def test_a_rectangle_or_a_small_step_is_not_cut():
+    from drawer_lib.articulation.gaps import extent_step_cuts
+
+    rng = np.random.default_rng(6)
+    f = Front((0.0, 0.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.85, 0.82))
+    rect = _rect_points(rng, -0.425, 0.425, -0.41, 0.41)
+    wall = _rect_points(rng, -0.425, 0.425, 0.41, 0.6, -0.3)
+    scene, owner = np.concatenate([rect, wall]), np.r_[np.ones(len(rect)), -np.ones(len(wall))].astype(int)
+    assert extent_step_cuts(f, rect, scene, owner, 1, 0.05, 0.1) == [f]
+    ragged = np.concatenate([_rect_points(rng, -0.425, 0.0, -0.41, 0.38), _rect_points(rng, 0.0, 0.425, -0.41, 0.41)])
+    assert extent_step_cuts(f, ragged, scene, owner, 1, 0.05, 0.1) == [f]  # a 3 cm step: under min_step
+    assert extent_step_cuts(f, np.zeros((0, 3)), scene, owner, 1, 0.05, 0.1) == [f]

@@ -99,6 +99,34 @@ def test_cooccurrence_graph_drops_one_off_masks_and_creases():
     assert len(e) == 0
 
 
+def test_views_that_miss_a_front_are_missing_data_with_missing_weight_0():
+    # faces 0..3 (a front) seen in 10 frames, masked in 3 of them; face 3 borders face 4 (a
+    # wall no mask holds), which the front's masks leave out
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    dih = np.zeros(4)
+    vis = np.full(5, 10)
+    masks = [MaskRecord(t, 1, "drawer", 1.0, np.array([0, 1, 2, 3])) for t in range(3)]
+    e, _ = cooccurrence_graph(5, edges, dih, masks, vis, 3, 0.5, 50.0)
+    assert len(e) == 0  # 3 of 10 frames: the front falls apart
+    e, w = cooccurrence_graph(5, edges, dih, masks, vis, 3, 0.5, 50.0, missing_weight=0.0)
+    assert e.tolist() == [[0, 1], [1, 2], [2, 3]] and np.allclose(w, 1.0)  # the border to the wall stays cut
+    e, w = cooccurrence_graph(5, edges, dih, masks, vis, 3, 0.3, 50.0, missing_weight=0.5)
+    assert np.allclose(w, 3 / 6.5)  # 3 frames + half of the 7 that missed it
+
+
+def test_weighted_median():
+    from drawer_lib.perception.decompose import weighted_median
+
+    rng = np.random.default_rng(0)
+    for n in range(1, 9):
+        x = rng.integers(0, 4, n).astype(float)
+        assert weighted_median(x, np.ones(n)) == np.median(x)  # equal weights: the plain median
+    a = np.asarray
+    assert weighted_median(a([0.0, 0.0, 0.9, 0.8]), a([0.0, 0.0, 1.0, 1.0])) == pytest.approx(0.85)  # weight 0: left out
+    assert weighted_median(a([0.0, 0.0, 0.0, 0.9, 0.8]), a([0.2, 0.2, 0.2, 1.0, 1.0])) == 0.8
+    assert np.isnan(weighted_median(np.zeros(0), np.zeros(0))) and np.isnan(weighted_median(a([1.0]), a([0.0])))
+
+
 def test_separation_cuts_the_border_a_neighbours_ragged_mask_bleeds_over():
     # a chain of faces: front A = 0..3, front B = 4..7; B's mask bleeds onto face 3 in 3 of 6
     # frames, as a dilated mask of the door below does onto a thin drawer's lower row
