@@ -51,7 +51,11 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     no front to ``report`` with the reason. With ``cfg.split.enabled`` and ``views`` with
     images, a segment's rectangle is first cut at the gap lines of its rectified image
     (:func:`~drawer_lib.articulation.gaps.split_front`): a segment over several fronts (masks
-    merged in most views) gives each of them, its info ``piece`` k ``of`` n."""
+    merged in most views) gives each of them, its info ``piece`` k ``of`` n. Then, from the mesh
+    alone, each rectangle is cut where the surface steps by a sliding track's offset
+    (``cfg.split.depth_steps``) and where the segment's outline steps (``extent_steps``), the
+    evidence in the info's ``mesh_cuts``. A planar segment whose label votes are mostly no front
+    label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part."""
     fc = cfg.fronts
     sin_v = np.sin(np.deg2rad(fc.vertical_deg))
     fits: list[tuple[Segment, Front, dict]] = []
