@@ -58,9 +58,15 @@ def read_overlay(index: Path) -> dict:
 def apply_overlay(cap: Capture, index: Path) -> Capture:
     """``cap`` with the files listed in ``index`` in place of its own, for every modality the
     index names; a modality it marks absent is removed from every frame. Every frame of ``cap``
-    must be listed for a modality that is present (else :class:`CaptureError` naming both)."""
+    must be listed for a modality that is present (else :class:`CaptureError` naming both).
+
+    A frame's path is kept relative to the capture's root, computed between the resolved
+    directories: the system resolves a ``..`` after following a symlink, so with a capture
+    folder that is a link (a user's data linked into ``out/``) a path relative to the link
+    itself would lead into the link target's neighbours, another scene's outputs."""
     d = read_overlay(index)
-    base = index.parent
+    base = index.parent.resolve()
+    root = Path(cap.root).resolve()
     updates: list[dict] = [{} for _ in cap.frames]
     for name, m in d["modalities"].items():
         key = FRAME_KEY[name]
@@ -72,7 +78,7 @@ def apply_overlay(cap: Capture, index: Path) -> Capture:
             if rel is None:
                 raise CaptureError(f"{index}: frame {f.file_path} of {cap.root} has no {key} "
                                    f"(the {d['stage']} stage ran on another capture?)")
-            updates[i][key] = os.path.relpath(base / rel, cap.root)
+            updates[i][key] = os.path.relpath(base / rel, root)
     frames = [replace(f, **u) for f, u in zip(cap.frames, updates)]
     return replace(cap, frames=frames, overlays=[*cap.overlays, d])
 

@@ -93,3 +93,22 @@ def test_auto_takes_the_captures_own_or_else_the_builtin_detector(tmp_path, exac
     assert r.returncode == 0, r.stderr[-3000:]
     cap = apply_overlay(load_capture(sp.capture), sp.file("priors", "index"))
     assert "priors.model=depth_anything" in capture_manifest(cap).missing("mono_depth")
+
+
+def test_an_overlay_on_a_linked_capture_reads_the_overlays_files(tmp_path, exact_capture):
+    """A capture folder that is a symlink (a user's data linked into out/<scene>/capture): the
+    overlay's files are the ones beside the overlay, not those at the same relative place next
+    to the link's target."""
+    target = tmp_path / "data" / "scene" / "capture"
+    shutil.copytree(exact_capture[0], target)
+    scene = tmp_path / "out" / "scene"
+    scene.mkdir(parents=True)
+    (scene / "capture").symlink_to(target, target_is_directory=True)
+    for where in (scene, target.parent):  # the same layout beside the link and beside its target
+        (where / "detect" / "detections").mkdir(parents=True)
+    cap = load_capture(scene / "capture")
+    frames = {f.file_path: {"detections_path": f"detections/{f.stem}.png"} for f in cap.frames}
+    write_overlay(scene / "detect" / "detect.json", "detect", "test", {"detections": {"has": True}}, frames)
+    c2 = apply_overlay(cap, scene / "detect" / "detect.json")
+    got = (c2.root / c2.frames[0].detections_path).resolve()
+    assert got == (scene / "detect" / "detections" / f"{cap.frames[0].stem}.png").resolve()
