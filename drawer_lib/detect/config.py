@@ -112,11 +112,11 @@ class DetectorTrainConfig:
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
-    frame_every: int = 4
+    frame_every: int = 2
     working_size: int = 256
     edge_px: int = 2
     width: int = 16
-    steps: int = 3000
+    steps: int = 5000
     batch: int = 12
     crop: int = 128
     lr: float = 3e-3
