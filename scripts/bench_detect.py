@@ -18,7 +18,7 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split test --jobs 2
     python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
-    python scripts/bench_detect.py --split train --tag mw0 --set decompose.missing_weight=0   # a variant, same detections
+    python scripts/bench_detect.py --split train --tag mw1 --set decompose.missing_weight=1   # a variant, same detections
 
 Writes ``<out>/<split>/summary.json``; each kitchen's folders stay under ``<out>`` (a rerun
 scores again without rebuilding the capture and geometry). Simulated input: rendered RGB-D.
@@ -66,6 +66,11 @@ FITTED_DIR = "articulate_fitted"
 OVERRIDES = ["scene=kitchen_small", "capture/detections=persistent", "capture/depth=sensor", "sdf=tsdf"]
 
 
+def variant(model: str, tag: str) -> str:
+    """The folder under ``by_detector/`` of ``model``'s decompose and articulate outputs."""
+    return f"{model}-{tag}" if tag else model
+
+
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
             decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "") -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
@@ -93,7 +98,7 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
     row = {"kitchen": k}
     for model in models:
         d = ScenePaths(sp.root / "by_detector", model)  # the detections
-        v = ScenePaths(sp.root / "by_detector", f"{model}-{tag}" if tag else model)  # decompose, articulate
+        v = ScenePaths(sp.root / "by_detector", variant(model, tag))  # decompose, articulate
         t0 = time.perf_counter()
         if decisions is None and not (tag and d.metrics("detect").is_file()):
             with stage_run("detect", d.detect, seed) as r:
@@ -128,7 +133,7 @@ def fit_per_model(models: list[str], out: Path, kitchens: list[int], overrides: 
         rows = []
         for k in kitchens:
             sp = ScenePaths(out / "train", f"kitchen_{k}")
-            dec = ScenePaths(sp.root / "by_detector", f"{model}-{tag}" if tag else model).file("articulate", "decisions")
+            dec = ScenePaths(sp.root / "by_detector", variant(model, tag)).file("articulate", "decisions")
             if not dec.is_file():
                 raise SystemExit(f"error: {dec}: missing; run --split train --kitchens {' '.join(map(str, kitchens))} first")
             rows += labelled_fronts(f"train_{k}", dec, read_parts(sp.capture / capture_name("gt_parts")))
@@ -176,7 +181,7 @@ def main() -> None:
     ap.add_argument("--fit-kitchens", type=int, nargs="+", default=[16, 17, 18, 19],
                     help="train kitchens (already run with --split train) the fitted weights learn from")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                    help="Hydra overrides of decompose and articulate (e.g. decompose.missing_weight=0)")
+                    help="Hydra overrides of decompose and articulate (e.g. decompose.missing_weight=1)")
     ap.add_argument("--tag", default="", help="write decompose and articulate to by_detector/<model>-TAG/ "
                     "(the detections of by_detector/<model>/ are read; the summary is summary-TAG.json)")
     a = ap.parse_args()

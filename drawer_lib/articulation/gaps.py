@@ -30,6 +30,7 @@ Shapes: grids are [Gv, Gu], v bottom -> top, u left -> right.
 import numpy as np
 
 from drawer_lib.articulation.config import SplitConfig
+from drawer_lib.articulation.interaction import front_coords
 from drawer_lib.articulation.rectify import RectifiedFront
 from drawer_lib.io.parts import Front
 
@@ -175,6 +176,21 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
     return out
 
 
+def _binned(x: np.ndarray, values: np.ndarray, a: float, b: float, bin_m: float, min_count: int,
+            stats) -> tuple[np.ndarray, np.ndarray]:
+    """``values`` [N] grouped by ``x`` [N] in bins of ``bin_m`` from ``a`` to ``b``: (centres [J],
+    [J, S] the ``stats`` (S functions of a bin's values) of every bin holding >= ``min_count``)."""
+    edges = np.arange(a, b + 0.5 * bin_m, bin_m)
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    xs, rows = [], []
+    for j in range(len(edges) - 1):
+        vj = values[idx == j]
+        if len(vj) >= min_count:
+            xs.append(0.5 * (edges[j] + edges[j + 1]))
+            rows.append([float(f(vj)) for f in stats])
+    return np.asarray(xs), np.asarray(rows).reshape(len(xs), len(stats))
+
+
 def _step_fit(x: np.ndarray, m: np.ndarray, k: int) -> tuple[float, float, float]:
     """Least squares of the profile ``m`` [J] over ``x`` [J] by a line with a step before index
     ``k``: m = a + b x + s [j >= k]; returns (s, b, residual sum of squares)."""
@@ -204,10 +220,9 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
     median of their points). ``[front]`` without a step. ``log`` (a list) receives each cut's
     evidence (position along u, step, residual RMS, the least step over the thirds; m), so
     ``decisions.json`` shows how far each test cleared its threshold."""
-    c, u, v, n = np.asarray(front.center), np.asarray(front.u), front.v, np.asarray(front.normal)
+    c, u, n = np.asarray(front.center), np.asarray(front.u), np.asarray(front.normal)
     w, h = front.size
-    d = np.asarray(points, float) - c
-    pu, pv, pn = d @ u, d @ v, d @ n
+    pu, pv, pn = front_coords(front, points).T
     ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= step_range[1] + 0.02) & np.isfinite(pn)
     pu, pv, pn = pu[ok], pv[ok], pn[ok]
 
@@ -216,15 +231,8 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
         if depth <= 0 or b - a < 2 * min_piece or sel.sum() < 20:
             return [(a, b)]
         x_all, n_all, v_all = pu[sel], pn[sel], pv[sel]
-        edges = np.arange(a, b + 0.5 * bin_m, bin_m)
-        idx = np.clip(np.searchsorted(edges, x_all, side="right") - 1, 0, len(edges) - 2)
-        xs, ms = [], []
-        for j in range(len(edges) - 1):
-            nj = n_all[idx == j]
-            if len(nj) >= 3:
-                xs.append(0.5 * (edges[j] + edges[j + 1]))
-                ms.append(float(np.median(nj)))
-        x, m = np.asarray(xs), np.asarray(ms)
+        x, m = _binned(x_all, n_all, a, b, bin_m, 3, (np.median,))
+        m = m[:, 0]
         if len(x) < 6:
             return [(a, b)]
         best = min(((k, *_step_fit(x, m, k)) for k in range(2, len(x) - 1)), key=lambda t: t[3])
@@ -297,17 +305,12 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
     and their own points' height (clipped to the front's); each side is cut again up to
     ``max_depth``. ``[front]`` otherwise. ``log`` (a list) receives each cut's evidence (which
     outline, position along u, step, spread (m), the notch's share of other surfaces)."""
-    c, u, v, n = np.asarray(front.center), np.asarray(front.u), front.v, np.asarray(front.normal)
+    c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
     w, h = front.size
-
-    def local(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        d = np.asarray(p, float) - c
-        return d @ u, d @ v, d @ n
-
-    pu, pv, pn = local(points)
+    pu, pv, pn = front_coords(front, points).T
     ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= 0.05)
     pu, pv = pu[ok], pv[ok]
-    su, sv, sn = local(scene_points)
+    su, sv, sn = front_coords(front, scene_points).T
 
     def height(a: float, b: float) -> tuple[float, float]:
         sel = (pu >= a) & (pu < b)
@@ -319,20 +322,11 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
         sel = (pu >= a) & (pu < b)
         if depth <= 0 or b - a < 2 * min_piece or sel.sum() < 50:
             return [(a, b)]
-        x_all, v_all = pu[sel], pv[sel]
-        edges = np.arange(a, b + 0.5 * bin_m, bin_m)
-        idx = np.clip(np.searchsorted(edges, x_all, side="right") - 1, 0, len(edges) - 2)
-        xs, tops, bots = [], [], []
-        for j in range(len(edges) - 1):
-            vj = v_all[idx == j]
-            if len(vj) >= 10:
-                xs.append(0.5 * (edges[j] + edges[j + 1]))
-                tops.append(float(np.percentile(vj, 98)))
-                bots.append(float(np.percentile(vj, 2)))
-        x = np.asarray(xs)
+        x, tb = _binned(pu[sel], pv[sel], a, b, bin_m, 10,
+                        (lambda q: np.percentile(q, 98), lambda q: np.percentile(q, 2)))
         if len(x) < 6:
             return [(a, b)]
-        for prof, is_top in ((np.asarray(tops), True), (np.asarray(bots), False)):
+        for prof, is_top in ((tb[:, 0], True), (tb[:, 1], False)):
             k, step, spread = _change_point(x, prof)
             if k < 0 or abs(step) < min_step or spread > abs(step) / 4:
                 continue

@@ -24,7 +24,7 @@ from drawer_lib.articulation.fronts import (
     share_edges,
 )
 from drawer_lib.articulation.handles import colour_handle, front_handles
-from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, interaction_evidence
+from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, front_coords, interaction_evidence
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
 from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_extent, rail_run
 from drawer_lib.articulation.gaps import border_lines, depth_step_cuts, extent_step_cuts, split_front
@@ -115,8 +115,8 @@ def piece_points(points: np.ndarray, front: Front, piece: bool) -> np.ndarray:
     measured on each one's own surface, not twice on the same points."""
     if not piece:
         return points
-    d = points - np.asarray(front.center)
-    return points[(np.abs(d @ np.asarray(front.u)) <= front.size[0] / 2) & (np.abs(d @ front.v) <= front.size[1] / 2)]
+    fc = front_coords(front, points)
+    return points[(np.abs(fc[:, 0]) <= front.size[0] / 2) & (np.abs(fc[:, 1]) <= front.size[1] / 2)]
 
 
 def drop_duplicate_pieces(fits: list[tuple[Segment, Front, dict]], min_iou: float, report: list[dict]
