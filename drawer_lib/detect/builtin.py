@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
-from jaxtyping import Float, UInt8
+from jaxtyping import Float, Int, UInt8
 from scipy import ndimage
 from torch import Tensor, nn
 
@@ -102,17 +102,22 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
     """Instance masks (at the probabilities' size) from per-pixel class probabilities.
 
     Fronts: markers are the connected regions of sure front pixels (P(front) > 0.5 and
-    P(edge) < ``edge_max``), eroded by ``erode_px`` (a thin bridge where an edge was only
-    half seen breaks) and of at least ``min_seed_px``; a watershed of P(edge) from them floods
-    the front, edge and handle pixels, so neighbouring fronts meet on their edge. A front keeps
-    its pixels but its handle's, has at least ``min_area_px`` and a mean P(front) + P(edge) of
-    at least ``min_score``. Handles and objects: connected regions of their class (at least a
+    P(edge) < ``edge_max``; with ``core_handle`` P(front) + P(handle) > 0.5, so a bar or knob
+    across a small front does not cut its interior in two), eroded by ``erode_px`` (a thin
+    bridge where an edge was only half seen breaks) and of at least ``min_seed_px``; a
+    watershed of P(edge) from them floods the front, edge and handle pixels, so neighbouring
+    fronts meet on their edge. Two regions whose shared boundary has a mean P(edge) below
+    ``merge_edge`` (the pair's higher value at each boundary pixel pair) are one front: no
+    edge was seen between them (:func:`merge_weak_boundaries`). A front keeps its pixels but
+    its handle's, has at least ``min_area_px`` and a mean P(front) + P(edge) of at least
+    ``min_score``. Handles and objects: connected regions of their class (at least a
     quarter of ``min_area_px`` and ``min_area_px``). Scores are mean probabilities."""
     from skimage.segmentation import watershed
 
     cls = prob.argmax(0)
     dets: list[Detection] = []
-    core = (prob[FRONT] > 0.5) & (prob[EDGE] < cfg.edge_max)
+    interior = prob[FRONT] + prob[HANDLE] if cfg.core_handle else prob[FRONT]
+    core = (interior > 0.5) & (prob[EDGE] < cfg.edge_max)
     if cfg.erode_px > 0:
         core = ndimage.binary_erosion(core, iterations=cfg.erode_px)
     markers, n = ndimage.label(core)
@@ -123,6 +128,8 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
         markers[small[markers]] = 0
     if markers.any():
         lab = watershed(prob[EDGE], markers=markers, mask=np.isin(cls, (FRONT, EDGE, HANDLE)))
+        if cfg.merge_edge > 0:
+            lab = merge_weak_boundaries(lab, prob[EDGE], cfg.merge_edge)
         lab[cls == HANDLE] = 0  # a front's mask leaves its handle out, as a detector's does
         pf = prob[FRONT] + prob[EDGE]
         areas = np.bincount(lab.ravel())
@@ -146,6 +153,44 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
             if score >= cfg.min_score:
                 dets.append(Detection(m, label, score))
     return dets
+
+
+def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray, "h w"], max_mean: float
+                          ) -> Int[np.ndarray, "h w"]:
+    """``lab`` (0 background, regions 1..n) with every two 4-adjacent regions whose shared
+    boundary has a mean edge probability below ``max_mean`` relabelled as one (transitively;
+    the merged region keeps the smaller label). A boundary pixel pair's value is the higher of
+    its two ``p_edge``: a watershed boundary runs along the ridge of ``p_edge``.
+
+    >>> lab = np.array([[1, 1, 2, 2, 3]]); pe = np.array([[0, 0.1, 0.2, 0.9, 0.9]])
+    >>> merge_weak_boundaries(lab, pe, 0.5).tolist()
+    [[1, 1, 1, 1, 3]]
+    """
+    n = int(lab.max()) + 1
+    keys, vals = [], []
+    for a, b, ea, eb in ((lab[:, :-1], lab[:, 1:], p_edge[:, :-1], p_edge[:, 1:]),
+                         (lab[:-1], lab[1:], p_edge[:-1], p_edge[1:])):
+        m = (a != b) & (a > 0) & (b > 0)
+        keys.append(np.minimum(a[m], b[m]).astype(np.int64) * n + np.maximum(a[m], b[m]))
+        vals.append(np.maximum(ea[m], eb[m]))
+    key = np.concatenate(keys)
+    if not len(key):
+        return lab
+    pairs, inv = np.unique(key, return_inverse=True)
+    mean = np.bincount(inv, weights=np.concatenate(vals)) / np.bincount(inv)
+    parent = list(range(n))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for pair in pairs[mean < max_mean]:
+        a, b = root(int(pair // n)), root(int(pair % n))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    return np.array([root(i) for i in range(n)])[lab]
 
 
 def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:

@@ -52,10 +52,17 @@ class BuiltinDetectConfig:
 
     working_size: int = 256
     edge_max: float = 0.2
+    core_handle: bool = True
     erode_px: int = 2
     min_seed_px: int = 15
     min_area_px: int = 40
     min_score: float = 0.6
+    merge_edge: float = 0.5
+
+    def __post_init__(self):
+        for k in ("edge_max", "min_score", "merge_edge"):
+            if not 0 <= getattr(self, k) <= 1:
+                raise ConfigError(f"detect.builtin.{k} = {getattr(self, k)}: a probability, must be in [0, 1]")
 
 
 @dataclass(frozen=True)
@@ -107,7 +114,8 @@ class DetectorTrainConfig:
     """The built-in detector's fit (conf/detector/): every ``frame_every``-th view of the train
     split's kitchens ``kitchens`` rendered at ``working_size`` on the long side, labelled from the
     renderer's segmentation (background, front, a front's ``edge_px`` border, handle, object);
-    ``steps`` of Adam at ``lr`` on random ``crop`` crops, ``batch`` at a time; scored on the test
+    ``steps`` of Adam at ``lr`` on random ``crop`` crops, ``batch`` at a time (colour and scale
+    jittered by ``color_jitter`` and ``scale_jitter``: :func:`drawer_lib.detect.train._crop_batch`); scored on the test
     split's kitchens ``eval_kitchens`` (never trained or tuned on)."""
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)))
@@ -120,11 +128,17 @@ class DetectorTrainConfig:
     batch: int = 12
     crop: int = 128
     lr: float = 3e-3
+    color_jitter: float = 0.0
+    scale_jitter: float = 1.0
     log_every: int = 100
     iou_match: float = 0.5
 
     def __post_init__(self):
         if not self.kitchens:
             raise ConfigError("detector.kitchens: at least one train kitchen is needed")
+        if not 0 <= self.color_jitter < 2:
+            raise ConfigError(f"detector.color_jitter = {self.color_jitter}: must be in [0, 2)")
+        if not 1 <= self.scale_jitter <= 4:
+            raise ConfigError(f"detector.scale_jitter = {self.scale_jitter}: must be in [1, 4]")
         if self.crop > self.working_size:
             raise ConfigError(f"detector.crop = {self.crop} exceeds detector.working_size = {self.working_size}")

@@ -11,7 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from drawer_lib.bench.scenes import kitchen_scene
-from drawer_lib.detect.builtin import CLASSES, TinyUNet, class_probs, decode_instances, normalise, resize_mask, save_detector, working_shape
+from drawer_lib.detect.builtin import CLASSES, MEAN, STD, TinyUNet, class_probs, decode_instances, normalise, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
 from drawer_lib.errors import InputError, NonFiniteError
@@ -38,22 +38,43 @@ def to_sample(v: View, size: int) -> Sample:
     return Sample(x[0], y[0, 0].long())
 
 
-def _crop_batch(samples: list[Sample], batch: int, crop: int, g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+def _crop_batch(samples: list[Sample], batch: int, crop: int, g: torch.Generator, color_jitter: float = 0.0,
+                scale_jitter: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """``batch`` random ``crop``² crops ([B, 3, crop, crop] inputs, [B, crop, crop] classes, -100
+    where padded): flipped at random, exposure jittered by ±15 %; with ``color_jitter`` c each
+    channel's gain and the contrast drawn from 1 ± c/2 (a front's colour the train kitchens never
+    showed); with ``scale_jitter`` s > 1 the crop covers crop × [1/s, s] pixels, resized to
+    ``crop`` (bilinear images, nearest classes: fronts nearer or farther than rendered)."""
     xs, ys = [], []
     for _ in range(batch):
         s = samples[int(torch.randint(len(samples), (1,), generator=g))]
         h, w = s.y.shape
-        ch, cw = min(crop, h), min(crop, w)
+        size = crop
+        if scale_jitter > 1:
+            size = round(crop * float(scale_jitter ** (2 * torch.rand((), generator=g) - 1)))
+        ch, cw = min(size, h), min(size, w)
         i = int(torch.randint(h - ch + 1, (1,), generator=g))
         j = int(torch.randint(w - cw + 1, (1,), generator=g))
         x, y = s.x[:, i:i + ch, j:j + cw], s.y[i:i + ch, j:j + cw]
+        if size != crop:
+            f = crop / size
+            ch, cw = min(crop, max(1, round(ch * f))), min(crop, max(1, round(cw * f)))
+            x = F.interpolate(x[None], size=(ch, cw), mode="bilinear", align_corners=False, antialias=f < 1)[0]
+            y = F.interpolate(y[None, None].float(), size=(ch, cw), mode="nearest")[0, 0].long()
         if (ch, cw) != (crop, crop):  # a small image: padded (ignored in the loss)
             x = F.pad(x, (0, crop - cw, 0, crop - ch))
             y = F.pad(y, (0, crop - cw, 0, crop - ch), value=-100)
         if bool(torch.rand((), generator=g) < 0.5):
             x, y = x.flip(-1), y.flip(-1)
         gain = 1.0 + 0.3 * (torch.rand((), generator=g) - 0.5)  # exposure jitter
-        xs.append(x * gain)
+        x = x * gain
+        if color_jitter > 0:
+            rgb = x * torch.tensor(STD)[:, None, None] + torch.tensor(MEAN)[:, None, None]
+            rgb = rgb * (1.0 + color_jitter * (torch.rand(3, 1, 1, generator=g) - 0.5))
+            mean = rgb.mean()
+            rgb = mean + (rgb - mean) * (1.0 + color_jitter * (torch.rand((), generator=g) - 0.5))
+            x = (rgb - torch.tensor(MEAN)[:, None, None]) / torch.tensor(STD)[:, None, None]
+        xs.append(x)
         ys.append(y)
     return torch.stack(xs), torch.stack(ys)
 
@@ -82,7 +103,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     losses = []
     model.train()
     for step in progress(range(1, cfg.steps + 1), desc="train", total=cfg.steps):
-        x, y = _crop_batch(samples, cfg.batch, cfg.crop, g)
+        x, y = _crop_batch(samples, cfg.batch, cfg.crop, g, cfg.color_jitter, cfg.scale_jitter)
         loss = F.cross_entropy(model(x), y, weight=weight, ignore_index=-100)
         if not torch.isfinite(loss):
             raise NonFiniteError(f"detector: loss {float(loss)} at step {step}")
@@ -99,15 +120,21 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
 
 def score_views(model: TinyUNet, views: list[View], dc: BuiltinDetectConfig, iou: float) -> dict:
     """2D instance precision / recall of the detector's fronts over ``views`` (at the views' size)."""
+    return score_probs([(class_probs(model, v.rgb, dc.working_size), v.fronts) for v in views], dc, iou)
+
+
+def score_probs(views: list[tuple[np.ndarray, np.ndarray]], dc: BuiltinDetectConfig, iou: float) -> dict:
+    """:func:`score_views` of probabilities already computed: ``views`` holds per view the
+    class probabilities [C, h, w] at the working size and the true front ids [H, W] (id + 1, 0
+    elsewhere), so decodings (``dc``) are compared without running the network again."""
     tp = n_pred = n_true = 0
-    for v in views:
-        H, W = v.classes.shape
-        dets = decode_instances(class_probs(model, v.rgb, dc.working_size), dc)
-        masks = [resize_mask(d.mask, H, W) for d in dets if d.label == "front"]
-        a, b, c = match_fronts(masks, v.fronts, dc.min_area_px, iou)
+    for prob, fronts in views:
+        H, W = fronts.shape
+        masks = [resize_mask(d.mask, H, W) for d in decode_instances(prob, dc) if d.label == "front"]
+        a, b, c = match_fronts(masks, fronts, dc.min_area_px, iou)
         tp, n_pred, n_true = tp + a, n_pred + b, n_true + c
     return {"precision": round(tp / n_pred, 4) if n_pred else None, "recall": round(tp / n_true, 4) if n_true else None,
-            "views": len(views), "fronts_true": n_true, "fronts_pred": n_pred}
+            "views": len(views), "fronts_true": n_true, "fronts_pred": n_pred, "fronts_matched": tp}
 
 
 def pixel_accuracy(model: TinyUNet, samples: list[Sample]) -> float:

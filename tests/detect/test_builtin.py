@@ -18,14 +18,16 @@ from drawer_lib.detect.builtin import (
     OBJECT,
     TinyUNet,
     decode_instances,
+    merge_weak_boundaries,
+    normalise,
     load_detector,
     resize_mask,
     save_detector,
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, fit_detector, pixel_accuracy
-from drawer_lib.errors import InputError
+from drawer_lib.detect.train import Sample, _crop_batch, fit_detector, pixel_accuracy
+from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
 from drawer_lib.metrics.detections import match_fronts
@@ -55,6 +57,39 @@ def test_two_fronts_apart_by_an_edge_a_handle_and_an_object():
     assert [d.label for d in dets if d.label != "front"] == ["handle", "object"]
     assert all(0.5 < d.score <= 1 for d in dets)
     assert decode_instances(_probs(np.zeros((8, 8), np.int64)), BuiltinDetectConfig()) == []  # empty image
+
+
+def test_a_bar_handle_across_a_small_front_does_not_cut_it_in_two():
+    cls = np.zeros((30, 60), np.int64)
+    cls[5:25, 5:29] = FRONT
+    cls[5:25, 31:55] = FRONT
+    cls[5:25, 29:31] = EDGE  # a double door's gap, each door's bar beside it
+    cls[8:22, 24:27] = HANDLE
+    cls[8:22, 33:36] = HANDLE
+    cls[13:17, 5:29] = HANDLE  # a bar across the left door, edge to edge
+    cfg = dict(min_area_px=20, min_score=0.5, erode_px=1, min_seed_px=5, merge_edge=0.0)
+    fronts = lambda d: [x for x in d if x.label == "front"]
+    assert len(fronts(decode_instances(_probs(cls), BuiltinDetectConfig(core_handle=False, **cfg)))) == 3
+    two = sorted(fronts(decode_instances(_probs(cls), BuiltinDetectConfig(core_handle=True, **cfg))),
+                 key=lambda d: d.mask.nonzero()[1].min())
+    assert len(two) == 2 and two[0].mask[5:13, 5:24].all() and two[0].mask[17:25, 5:24].all()
+    assert not two[0].mask[:, 31:].any() and not two[0].mask[13:17, 5:29].any()  # its handle stays out
+
+
+def test_regions_without_an_edge_between_them_merge():
+    lab = np.zeros((6, 9), np.int64)
+    lab[:, 0:3], lab[:, 3:6], lab[:, 6:9] = 1, 2, 3
+    pe = np.zeros((6, 9))
+    pe[:, 5:7] = 0.9  # a seen edge between 2 and 3, none between 1 and 2
+    out = merge_weak_boundaries(lab, pe, 0.5)
+    assert (out[:, 0:6] == 1).all() and (out[:, 6:] == 3).all()
+    assert (merge_weak_boundaries(lab, pe, 0.95) == 1).all()  # transitively, through 2
+    assert np.array_equal(merge_weak_boundaries(lab, pe, 0.0), lab)
+    lab[:, 3:6] = 0  # apart: background between them
+    assert np.array_equal(merge_weak_boundaries(lab, np.zeros_like(pe), 0.5), lab)
+    assert np.array_equal(merge_weak_boundaries(np.zeros((3, 3), np.int64), np.zeros((3, 3)), 0.5), np.zeros((3, 3)))
+    with pytest.raises(ConfigError, match="merge_edge"):
+        BuiltinDetectConfig(merge_edge=1.5)
 
 
 def test_painting_keeps_handles_on_top_and_ids_local():
@@ -88,6 +123,32 @@ def test_network_shapes_weights_file_and_resize(tmp_path):
     a = np.zeros((4, 6), bool)
     a[1, 2] = True
     assert resize_mask(a, 8, 12)[2:4, 4:6].all() and resize_mask(a, 8, 12).sum() == 4
+
+
+def test_crop_augmentation_keeps_labels_on_their_pixels():
+    """Colour jitter changes pixels, never classes; scale jitter resizes both alike: a class
+    boundary stays where the image's step is, and padding is ignored (-100)."""
+    h, w = 60, 90
+    rgb = np.zeros((h, w, 3), np.uint8)
+    rgb[:, 45:] = 200  # a bright right half ...
+    y = np.zeros((h, w), np.int64)
+    y[:, 45:] = FRONT  # ... is front
+    s = Sample(normalise(rgb), torch.as_tensor(y))
+    plain = _crop_batch([s], 4, 48, torch.Generator().manual_seed(0))
+    assert torch.equal(plain[0], _crop_batch([s], 4, 48, torch.Generator().manual_seed(0))[0])  # seeded
+    for cj, sj in ((0.6, 1.0), (0.0, 1.6), (0.6, 1.6)):
+        x, lab = _crop_batch([s], 16, 48, torch.Generator().manual_seed(1), cj, sj)
+        assert x.shape == (16, 3, 48, 48) and lab.shape == (16, 48, 48) and torch.isfinite(x).all()
+        bright = x.mean(1) > normalise(np.full((1, 1, 3), 100, np.uint8))[0, 0, 0]
+        keep = lab != -100
+        agree = (bright[keep] == (lab[keep] == FRONT)).float().mean()
+        assert agree == 1 if sj == 1 else agree > 0.97  # resized: the step's one blended column may differ
+        assert set(torch.unique(lab).tolist()) <= {-100, 0, FRONT}
+    x, _ = _crop_batch([s], 16, 48, torch.Generator().manual_seed(1), 0.6, 1.0)
+    xp, _ = _crop_batch([s], 16, 48, torch.Generator().manual_seed(1), 0.0, 1.0)
+    assert not torch.allclose(x, xp)  # the jitter does change colours
+    with pytest.raises(ConfigError, match="scale_jitter"):
+        DetectorTrainConfig(scale_jitter=0.5)
 
 
 def test_fit_learns_rectangles_on_a_flat_background():
