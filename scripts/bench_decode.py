@@ -8,7 +8,7 @@ stage scores its fit). The network runs once per view; only the decoding varies.
         --variant "core_handle=false merge_edge=0" --variant "merge_edge=0" --variant ""
     python scripts/bench_decode.py --split test --kitchens 0 1 2 3 4 5 --every 2 --variant "core_handle=false merge_edge=0" --variant ""
 
-Tune on the train split's kitchens 16-31 (the fit uses 0-15); score on the test split.
+Tune on the train split's kitchens 16-31 (the fit uses 0-15 and 32-47); score on the test split.
 Simulated input: the generator's renders.
 """
 
@@ -73,7 +73,7 @@ def main() -> None:
         frames = list(range(0, synth.camera.n_frames, a.every))
         views += [(class_probs(model, v.rgb, base.working_size), v.fronts) for v in render_views(synth, render, frames, edge_px)]
         print(f"{a.split} kitchen {k}: {len(views)} views", flush=True)
-    print(f"\n| {a.split} kitchens {a.kitchens[0]}..{a.kitchens[-1]}, every {a.every}th view | 2D precision | 2D recall | matched / predicted / true |")
+    print(f"\n| {a.split} kitchens {a.kitchens[0]}..{a.kitchens[-1]}, one view in {a.every} | 2D precision | 2D recall | matched / predicted / true |")
     print("|---|---|---|---|")
     for text, dc in variants:
         s = score_probs(views, dc, a.iou)
