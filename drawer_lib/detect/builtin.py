@@ -15,6 +15,8 @@ import torch
 import torch.nn.functional as F
 from jaxtyping import Float, Int, UInt8
 from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from torch import Tensor, nn
 
 from drawer_lib.detect.config import BuiltinDetectConfig
@@ -178,19 +180,12 @@ def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray,
         return lab
     pairs, inv = np.unique(key, return_inverse=True)
     mean = np.bincount(inv, weights=np.concatenate(vals)) / np.bincount(inv)
-    parent = list(range(n))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for pair in pairs[mean < max_mean]:
-        a, b = root(int(pair // n)), root(int(pair % n))
-        if a != b:
-            parent[max(a, b)] = min(a, b)
-    return np.array([root(i) for i in range(n)])[lab]
+    weak = pairs[mean < max_mean]
+    graph = coo_matrix((np.ones(len(weak)), (weak // n, weak % n)), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    smallest = np.full(comp.max() + 1, n)
+    np.minimum.at(smallest, comp, np.arange(n))
+    return smallest[comp][lab]
 
 
 def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:

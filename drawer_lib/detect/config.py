@@ -118,7 +118,7 @@ class DetectorTrainConfig:
     jittered by ``color_jitter`` and ``scale_jitter``: :func:`drawer_lib.detect.train._crop_batch`); scored on the test
     split's kitchens ``eval_kitchens`` (never trained or tuned on)."""
 
-    kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 48)))
+    kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
     frame_every: int = 2
     working_size: int = 256
