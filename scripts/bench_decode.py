@@ -8,7 +8,7 @@ stage scores its fit). The network runs once per view; only the decoding varies.
         --variant "core_handle=false merge_edge=0" --variant "merge_edge=0" --variant ""
     python scripts/bench_decode.py --split test --kitchens 0 1 2 3 4 5 --every 2 --variant "core_handle=false merge_edge=0" --variant ""
 
-Tune on the train split's kitchens 16-31 (the fit uses 0-15 and 32-47); score on the test split.
+Tune on the train split's kitchens 16-31 (the fit uses 0-15 and 32-79); score on the test split.
 Simulated input: the generator's renders.
 """
 

@@ -115,8 +115,8 @@ class DetectorTrainConfig:
     split's kitchens ``kitchens`` rendered at ``working_size`` on the long side, labelled from the
     renderer's segmentation (background, front, a front's ``edge_px`` border, handle, object);
     ``steps`` of Adam at ``lr`` on random ``crop`` crops, ``batch`` at a time (colour and scale
-    jittered by ``color_jitter`` and ``scale_jitter``: :func:`drawer_lib.detect.train._crop_batch`); scored on the test
-    split's kitchens ``eval_kitchens`` (never trained or tuned on)."""
+    jittered by ``color_jitter`` and ``scale_jitter``: :func:`drawer_lib.detect.train._crop_batch`);
+    scored on the test split's kitchens ``eval_kitchens`` (never trained or tuned on)."""
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))

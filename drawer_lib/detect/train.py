@@ -45,6 +45,7 @@ def _crop_batch(samples: list[Sample], batch: int, crop: int, g: torch.Generator
     channel's gain and the contrast drawn from 1 ± c/2 (a front's colour the train kitchens never
     showed); with ``scale_jitter`` s > 1 the crop covers crop × [1/s, s] pixels, resized to
     ``crop`` (bilinear images, nearest classes: fronts nearer or farther than rendered)."""
+    mean_rgb, std_rgb = torch.tensor(MEAN)[:, None, None], torch.tensor(STD)[:, None, None]
     xs, ys = [], []
     for _ in range(batch):
         s = samples[int(torch.randint(len(samples), (1,), generator=g))]
@@ -69,11 +70,11 @@ def _crop_batch(samples: list[Sample], batch: int, crop: int, g: torch.Generator
         gain = 1.0 + 0.3 * (torch.rand((), generator=g) - 0.5)  # exposure jitter
         x = x * gain
         if color_jitter > 0:
-            rgb = x * torch.tensor(STD)[:, None, None] + torch.tensor(MEAN)[:, None, None]
+            rgb = x * std_rgb + mean_rgb
             rgb = rgb * (1.0 + color_jitter * (torch.rand(3, 1, 1, generator=g) - 0.5))
-            mean = rgb.mean()
-            rgb = mean + (rgb - mean) * (1.0 + color_jitter * (torch.rand((), generator=g) - 0.5))
-            x = (rgb - torch.tensor(MEAN)[:, None, None]) / torch.tensor(STD)[:, None, None]
+            grey = rgb.mean()
+            rgb = grey + (rgb - grey) * (1.0 + color_jitter * (torch.rand((), generator=g) - 0.5))
+            x = (rgb - mean_rgb) / std_rgb
         xs.append(x)
         ys.append(y)
     return torch.stack(xs), torch.stack(ys)
