@@ -123,7 +123,7 @@ class DetectorTrainConfig:
     frame_every: int = 2
     working_size: int = 256
     edge_px: int = 2
-    width: int = 16
+    width: int = 24
     steps: int = 5000
     batch: int = 12
     crop: int = 128
