@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 from drawer_lib.articulation.vocab import check_weights, prior_weights
 from drawer_lib.errors import ConfigError
+from drawer_lib.hub import HubModel
 from drawer_lib.io.working import check_max_side
 
 
@@ -375,10 +376,46 @@ class FalseFrontsConfig:
 
 
 @dataclass(frozen=True)
+class VlmConfig:
+    """The ``vlm`` estimator (:mod:`drawer_lib.articulation.vlm`; DRAWER asks GPT-4o): a
+    vision-language model run locally through ``transformers`` is shown each front in the view
+    that sees it largest, outlined in red with ``margin`` of its box around it, and asked
+    ``prompt``; the first word of ``answers`` its reply contains gives the front label votes of
+    that key, ``share`` of the segment's votes once added (the detections' keep the rest), which
+    the score rule weighs through ``lab_drawer`` / ``lab_door``. A front smaller than ``min_px``
+    on its shorter side in every view, or that no view sees whole, is not asked. Weights:
+    ``model`` (:class:`~drawer_lib.hub.HubModel`), read from a local folder or the
+    Hugging Face cache, fetched only with ``allow_download``."""
+
+    model: HubModel = field(default_factory=lambda: HubModel(repo="HuggingFaceTB/SmolVLM-256M-Instruct"))
+    allow_download: bool = False
+    device: str = "cpu"
+    prompt: str = ("The part of a kitchen outlined in red: is it a drawer, a door, or a fixed panel that does not "
+                   "open? Answer with one word.")
+    answers: dict[str, list[str]] = field(default_factory=lambda: {
+        "drawer": ["drawer"], "door": ["door", "flap", "lid"], "front": ["panel", "fixed"]})
+    share: float = 0.5
+    margin: float = 0.3
+    min_px: int = 24
+    max_new_tokens: int = 8
+
+    def __post_init__(self):
+        if not self.prompt.strip():
+            raise ConfigError("articulate.vlm.prompt is empty")
+        if not self.answers or any(not isinstance(w, list) or not w for w in self.answers.values()):
+            raise ConfigError("articulate.vlm.answers must map each label to a non-empty list of answer words")
+        if not 0 < self.share < 1:
+            raise ConfigError(f"articulate.vlm.share = {self.share} must be in (0, 1)")
+        if self.margin < 0 or self.min_px < 1 or self.max_new_tokens < 1:
+            raise ConfigError("articulate.vlm: margin >= 0, min_px >= 1 and max_new_tokens >= 1")
+
+
+@dataclass(frozen=True)
 class ArticulateConfig:
     """Segments -> ``parts.json`` (``drawer.parts/1``, docs/formats.md). ``estimator``: ``geometric`` (built in: plane,
-    rectangle, handle and layout cues) or a learned one (``3doi``, ``vlm``: named slots that need
-    weights or services not available here; register one with
+    rectangle, handle and layout cues), ``vlm`` (the same, with a local vision-language model's
+    answer for each front as label votes: ``vlm``) or ``3doi`` (a named slot that needs weights
+    not available here; register an estimator with
     :func:`drawer_lib.articulation.estimators.register_estimator`)."""
 
     estimator: str = "geometric"
@@ -391,6 +428,17 @@ class ArticulateConfig:
     joints: JointsConfig = field(default_factory=JointsConfig)
     interaction: InteractionConfig = field(default_factory=InteractionConfig)
     false_fronts: FalseFrontsConfig = field(default_factory=FalseFrontsConfig)
+    vlm: VlmConfig = field(default_factory=VlmConfig)
 
     def __post_init__(self):
         check_max_side("articulate.max_side", self.max_side)
+        if self.estimator == "vlm":
+            if not self.types.use_labels:
+                raise ConfigError("articulate.estimator = vlm gives label votes, which articulate.types.use_labels = "
+                                  "false ignores")
+            fronts = {x.strip().lower() for x in [*self.types.door_labels, *self.types.drawer_labels,
+                                                  *self.types.front_labels]}
+            bad = sorted(k for k in self.vlm.answers if k.strip().lower() not in fronts)
+            if bad:
+                raise ConfigError(f"articulate.vlm.answers: {bad} are not front labels (articulate.types door_labels, "
+                                  "drawer_labels or front_labels): their votes would make a front an object")

@@ -1,6 +1,7 @@
 """The estimator slot: ``articulate.estimator`` names the function that turns segments into
-parts. ``geometric`` is built in (:func:`drawer_lib.articulation.infer.infer_parts`); learned
-estimators (3DOI, a vision-language model) are named slots that need weights or services this
+parts. ``geometric`` is built in (:func:`drawer_lib.articulation.infer.infer_parts`), ``vlm``
+adds a local vision-language model's answer for each front (:func:`drawer_lib.articulation.vlm.vlm_parts`;
+it reads the keyword ``vlm_views`` as well); 3DOI is a named slot that needs weights this
 project cannot fetch; :func:`register_estimator` plugs a real one in."""
 
 from collections.abc import Callable
@@ -11,8 +12,7 @@ from drawer_lib.io.parts import Part
 # fn(mesh, segments, cam_centers, cfg, handle_hits=..., masks_of=..., face_views=..., weights=..., views=...) -> (parts, decisions)
 Estimator = Callable[..., tuple[list[Part], list[dict]]]
 _REGISTRY: dict[str, Estimator] = {}
-SLOTS = {"3doi": "3DOI (SAM-transformer ViT-B, checkpoint_20230515.pth)",
-         "vlm": "a vision-language model (DRAWER: GPT-4o through the OpenAI API)"}
+SLOTS = {"3doi": "3DOI (SAM-transformer ViT-B, checkpoint_20230515.pth)"}
 
 
 def register_estimator(name: str, fn: Estimator) -> None:
@@ -26,10 +26,14 @@ def get_estimator(name: str) -> Estimator:
         from drawer_lib.articulation.infer import infer_parts
 
         return infer_parts
+    if name == "vlm":
+        from drawer_lib.articulation.vlm import vlm_parts
+
+        return vlm_parts
     if name in _REGISTRY:
         return _REGISTRY[name]
     if name in SLOTS:
         raise ConfigError(f"articulate.estimator = {name!r}: {SLOTS[name]} needs weights or a service that are not "
                           "available here; use 'geometric' or register an implementation with "
                           "drawer_lib.articulation.estimators.register_estimator")
-    raise ConfigError(f"articulate.estimator = {name!r} is unknown (known: geometric, {sorted(_REGISTRY) + sorted(SLOTS)})")
+    raise ConfigError(f"articulate.estimator = {name!r} is unknown (known: geometric, vlm, {sorted(_REGISTRY) + sorted(SLOTS)})")

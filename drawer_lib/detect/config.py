@@ -4,19 +4,10 @@ detector's training (conf/detector/). Sizes in pixels."""
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
+from drawer_lib.hub import HubModel
 
 DETECT_MODELS = ("auto", "capture", "none", "builtin", "owlv2_sam")
 PRIORS_MODELS = ("auto", "capture", "none", "depth_anything")
-
-
-@dataclass(frozen=True)
-class HubModel:
-    """A foundation model's weights: ``path``, a local folder as ``save_pretrained`` writes it,
-    or else ``repo`` (at ``revision``) from the Hugging Face cache (``HF_HOME``)."""
-
-    repo: str
-    path: str | None = None
-    revision: str | None = None
 
 
 @dataclass(frozen=True)

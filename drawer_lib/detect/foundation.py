@@ -1,6 +1,6 @@
 """The paper's foundation models through Hugging Face ``transformers``: open-vocabulary boxes
 (OWLv2) segmented by SAM for the detections, Depth Anything for relative depth (normals read
-off it). Weights come from a local folder or the Hugging Face cache (:mod:`drawer_lib.detect.hub`).
+off it). Weights come from a local folder or the Hugging Face cache (:mod:`drawer_lib.hub`).
 
 Each model runs one frame at a time on ``device`` in inference mode; nothing is kept between
 frames but the model.
@@ -11,7 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from drawer_lib.detect.config import DetectConfig, PriorsConfig
-from drawer_lib.detect.hub import model_dir
+from drawer_lib.hub import model_dir
 from drawer_lib.detect.masks import Detection
 from drawer_lib.errors import NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics, normals_from_depth

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from helpers import run_stage, scene_paths
 
-from drawer_lib.detect.config import DetectConfig, HubModel, PriorsConfig
-from drawer_lib.detect.hub import model_dir
+from drawer_lib.detect.config import DetectConfig, PriorsConfig
+from drawer_lib.hub import HubModel, model_dir
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import pixel_dirs
 from drawer_lib.io.capture import load_capture

@@ -1,10 +1,21 @@
-"""Foundation models' weights: a local folder, or the Hugging Face cache; fetched only when the
-user allows it. A missing model is one line that says how to get it."""
+"""Foundation models' weights (the detect and priors stages' models, articulate's vision-language
+model): a local folder, or the Hugging Face cache; fetched only when the user allows it. A
+missing model is one line that says how to get it."""
 
+from dataclasses import dataclass
 from pathlib import Path
 
-from drawer_lib.detect.config import HubModel
 from drawer_lib.errors import InputError
+
+
+@dataclass(frozen=True)
+class HubModel:
+    """A foundation model's weights: ``path``, a local folder as ``save_pretrained`` writes it,
+    or else ``repo`` (at ``revision``) from the Hugging Face cache (``HF_HOME``)."""
+
+    repo: str
+    path: str | None = None
+    revision: str | None = None
 
 
 def model_dir(m: HubModel, allow_download: bool, key: str) -> Path:
