@@ -1,6 +1,6 @@
-"""Foundation models of the detect and priors stages built from tiny configurations with random
-weights and written as ``save_pretrained`` writes them: the stages' loading, pre- and
-post-processing and output format run without a download."""
+"""Foundation models of the detect and priors stages and articulate's vision-language models,
+built from tiny configurations with random weights and written as ``save_pretrained`` writes
+them: the stages' loading, pre- and post-processing and output format run without a download."""
 
 from pathlib import Path
 

@@ -1,7 +1,7 @@
 """The estimator slot: ``articulate.estimator`` names the function that turns segments into
 parts. ``geometric`` is built in (:func:`drawer_lib.articulation.infer.infer_parts`), ``vlm``
 adds a local vision-language model's answer for each front (:func:`drawer_lib.articulation.vlm.vlm_parts`;
-it reads the keyword ``vlm_views`` as well); 3DOI is a named slot that needs weights this
+it reads the keywords ``vlm_views`` and ``typer`` as well); 3DOI is a named slot that needs weights this
 project cannot fetch; :func:`register_estimator` plugs a real one in."""
 
 from collections.abc import Callable

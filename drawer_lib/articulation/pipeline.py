@@ -8,7 +8,6 @@ import numpy as np
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.estimators import get_estimator
 from drawer_lib.articulation.rectify import View
-from drawer_lib.hub import model_dir
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
@@ -68,8 +67,11 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
     ``weights``: the score rule's (:func:`drawer_lib.articulation.weights.resolve_weights`;
     None: ``cfg.types.prior``)."""
     est = get_estimator(cfg.estimator)
-    if cfg.estimator == "vlm":  # a missing model stops the stage before any work
-        model_dir(cfg.vlm.model, cfg.vlm.allow_download, "articulate.vlm.model")
+    extra = {}
+    if cfg.estimator == "vlm":  # loaded first: a missing model stops the stage before any work
+        from drawer_lib.articulation.vlm import VlmTyper
+
+        extra["typer"] = VlmTyper(cfg.vlm)
     cap = at_working_size(cap, cfg.max_side)
     run.metrics.update(working_size_metrics(cap))
     mesh, segs, hits, face_views = load_segments(seg_dir)
@@ -80,7 +82,6 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
     masks_of = mask_source(cap) if cap.has("detections_path") else None
     views = (train_views(cap, mesh, with_images=cfg.split.enabled or cfg.rectify.colour_handles)
              if cfg.rectify.enabled and cap.has("detections_path") else None)
-    extra = {}
     if cfg.estimator == "vlm":  # the model sees every train view, with or without detections
         extra["vlm_views"] = views if views is not None and all(v.image is not None for v in views) else \
             train_views(cap, mesh, with_images=True)

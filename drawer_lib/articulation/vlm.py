@@ -23,8 +23,8 @@ from tqdm import tqdm
 from drawer_lib.articulation.config import ArticulateConfig, VlmConfig
 from drawer_lib.articulation.infer import infer_parts
 from drawer_lib.articulation.rectify import View
-from drawer_lib.hub import model_dir
 from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.hub import model_dir
 from drawer_lib.io.parts import Part
 from drawer_lib.perception.decompose import Segment
 
@@ -109,7 +109,6 @@ class VlmTyper:
         self.model = AutoModelForImageTextToText.from_pretrained(d, local_files_only=True).eval().to(self.device)
         if getattr(self.proc, "chat_template", None) is None:
             raise InputError(f"articulate.vlm.model: {d} has no chat template (an instruction-tuned model has one)")
-        self.source = str(d)
 
     @torch.inference_mode()
     def ask(self, image: np.ndarray) -> str:

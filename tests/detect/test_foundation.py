@@ -11,9 +11,9 @@ import pytest
 from helpers import run_stage, scene_paths
 
 from drawer_lib.detect.config import DetectConfig, PriorsConfig
-from drawer_lib.hub import HubModel, model_dir
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.camera import pixel_dirs
+from drawer_lib.hub import HubModel, model_dir
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.images import read_json, read_u16
 from drawer_lib.io.overlay import apply_overlay, capture_manifest
