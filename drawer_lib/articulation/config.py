@@ -2,6 +2,7 @@
 changes a result, grouped by the step that uses it. Lengths in metres, angles in degrees."""
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from drawer_lib.articulation.vocab import check_weights, prior_weights
 from drawer_lib.errors import ConfigError
@@ -383,9 +384,12 @@ class VlmConfig:
     ``prompt``; the first word of ``answers`` its reply contains gives the front label votes of
     that key, ``share`` of the segment's votes once added (the detections' keep the rest), which
     the score rule weighs through ``lab_drawer`` / ``lab_door``. A front smaller than ``min_px``
-    on its shorter side in every view, or that no view sees whole, is not asked. Weights:
-    ``model`` (:class:`~drawer_lib.hub.HubModel`), read from a local folder or the
-    Hugging Face cache, fetched only with ``allow_download``."""
+    on its shorter side in every view, or that no view sees whole, is not asked.
+    ``processor_kwargs``: keyword arguments of the processor's call, which set what the model
+    sees and so its cost (SmolVLM / Idefics3: ``do_image_splitting: false`` gives one 512 px
+    tile instead of up to 17, ~64 image tokens instead of ~1100; a processor that does not know
+    a key ignores it with a warning). Weights: ``model`` (:class:`~drawer_lib.hub.HubModel`),
+    read from a local folder or the Hugging Face cache, fetched only with ``allow_download``."""
 
     model: HubModel = field(default_factory=lambda: HubModel(repo="HuggingFaceTB/SmolVLM-256M-Instruct"))
     allow_download: bool = False
@@ -398,8 +402,14 @@ class VlmConfig:
     margin: float = 0.3
     min_px: int = 24
     max_new_tokens: int = 8
+    processor_kwargs: dict[str, Any] = field(default_factory=lambda: {"do_image_splitting": False})
 
     def __post_init__(self):
+        if not all(isinstance(k, str) for k in self.processor_kwargs):
+            raise ConfigError(f"articulate.vlm.processor_kwargs = {self.processor_kwargs!r} must map names to values")
+        reserved = {"text", "images", "return_tensors"} & set(self.processor_kwargs)
+        if reserved:
+            raise ConfigError(f"articulate.vlm.processor_kwargs: {sorted(reserved)} are set by the estimator")
         if not self.prompt.strip():
             raise ConfigError("articulate.vlm.prompt is empty")
         if not self.answers or any(not isinstance(w, list) or not w for w in self.answers.values()):

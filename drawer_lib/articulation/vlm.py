@@ -111,18 +111,21 @@ class VlmTyper:
             raise InputError(f"articulate.vlm.model: {d} has no chat template (an instruction-tuned model has one)")
 
     @torch.inference_mode()
-    def ask(self, image: np.ndarray) -> str:
-        """The model's reply (greedy decoding) to ``cfg.prompt`` about uint8 [H, W, 3] ``image``."""
+    def ask(self, image: np.ndarray) -> tuple[str, int]:
+        """The model's reply (greedy decoding) to ``cfg.prompt`` about uint8 [H, W, 3] ``image``,
+        and the length of its input in tokens (the image's tokens and the prompt's: its cost)."""
         from PIL import Image
 
         msgs = [{"role": "user", "content": [{"type": "image"}, {"type": "text", "text": self.cfg.prompt}]}]
         text = self.proc.apply_chat_template(msgs, add_generation_prompt=True)
-        inp = self.proc(text=text, images=[Image.fromarray(image)], return_tensors="pt").to(self.device)
+        inp = self.proc(text=text, images=[Image.fromarray(image)], return_tensors="pt",
+                        **self.cfg.processor_kwargs).to(self.device)
         pv = inp.get("pixel_values")
         if pv is not None and not torch.isfinite(pv).all():
             raise NonFiniteError("articulate.vlm: the processor gave non-finite pixel values")
         out = self.model.generate(**inp, max_new_tokens=self.cfg.max_new_tokens, do_sample=False)
-        return self.proc.batch_decode(out[:, inp["input_ids"].shape[1]:], skip_special_tokens=True)[0].strip()
+        n = int(inp["input_ids"].shape[1])
+        return self.proc.batch_decode(out[:, n:], skip_special_tokens=True)[0].strip(), n
 
 
 def vote(labels: dict[str, int], label: str, share: float) -> dict[str, int]:
@@ -153,9 +156,9 @@ def vlm_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarra
             out.append(s)
             continue
         k, box = bv
-        reply = typer.ask(outlined_crop(vlm_views[k].image, box, vc.margin))
+        reply, tokens = typer.ask(outlined_crop(vlm_views[k].image, box, vc.margin))
         label = parse_answer(reply, vc.answers)
-        asked[s.id] = {"view": vlm_views[k].stem, "box": list(box), "reply": reply, "label": label}
+        asked[s.id] = {"view": vlm_views[k].stem, "box": list(box), "reply": reply, "label": label, "tokens": tokens}
         out.append(dataclasses.replace(s, labels=vote(s.labels, label, vc.share)) if label else s)
     parts, report = infer_parts(mesh, out, cam_centers, cfg, **kw)
     for r in report:

@@ -92,6 +92,8 @@ def test_configurations_that_would_lose_the_answer_are_refused():
         VlmConfig(share=1.0)
     with pytest.raises(ConfigError, match="prompt"):
         VlmConfig(prompt=" ")
+    with pytest.raises(ConfigError, match="set by the estimator"):
+        VlmConfig(processor_kwargs={"images": []})
     assert get_estimator("vlm") is vlm_parts
 
 
@@ -103,9 +105,17 @@ def test_the_model_answers_an_image_through_its_own_processor(family, tmp_path):
     d = getattr(tiny_hf, f"tiny_{family}")(tmp_path / family)
     typer = VlmTyper(VlmConfig(model=HubModel("none/none", path=str(d)), max_new_tokens=3))
     img = (np.random.default_rng(0).random((40, 70, 3)) * 255).astype(np.uint8)
-    reply = typer.ask(img)
+    reply, n = typer.ask(img)
     assert reply == "drawer drawer drawer" and parse_answer(reply, ANSWERS) == "drawer"
-    assert typer.ask(img[:9, :30]) == reply  # a crop smaller than the model's tiles
+    assert typer.ask(img[:9, :30])[0] == reply  # a crop smaller than the model's tiles
+    # the processor's keywords reach it: Idefics3 tiles the image only when asked to (one 32 px
+    # image of 4 tokens, or 2 x 2 tiles and the global image of 4 each, each tile with its
+    # <fake_token_around_image><row_i_col_j> marker: 16 + 8 more tokens); LLaVA ignores the key
+    split = VlmTyper(VlmConfig(model=HubModel("none/none", path=str(d)), max_new_tokens=3,
+                               processor_kwargs={"do_image_splitting": True}))
+    reply_split, n_split = split.ask(img)
+    assert reply_split == reply
+    assert n_split - n == (24 if family == "idefics3" else 0)
 
 
 @pytest.fixture()
@@ -137,6 +147,7 @@ def test_articulate_asks_a_tiny_vlm_about_every_front(project, tmp_path_factory)
     for s in asked:  # the tiny model always answers "drawer"
         v = s["vlm"]
         assert v["reply"].split()[0] == "drawer" and v["label"] == "drawer" and v["view"] in stems
+        assert v["tokens"] > 16  # the image's 16 tokens and the prompt's
         x0, y0, x1, y1 = v["box"]
         assert 0 <= x0 and x1 - x0 >= 8 and 0 <= y0 and y1 - y0 >= 8
     scored = [s for s in asked if "features" in s]  # the fronts the score rule typed
