@@ -19,6 +19,7 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
     python scripts/bench_detect.py --split train --tag mw1 --set decompose.missing_weight=1   # a variant, same detections
+    python scripts/bench_detect.py --split hand --kitchens 0 1 2 3 --detect capture builtin   # kitchens written by hand
 
 Writes ``<out>/<split>/summary.json``; each kitchen's folders stay under ``<out>`` (a rerun
 scores again without rebuilding the capture and geometry). Simulated input: rendered RGB-D.
@@ -60,6 +61,7 @@ from drawer_lib.runner import stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
+from drawer_lib.synth.splits import HAND, SPLITS
 
 ROOT = Path(__file__).resolve().parent.parent
 FITTED_DIR = "articulate_fitted"
@@ -84,7 +86,7 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
     base = OmegaConf.to_container(cfg.scene, resolve=True)
     scene = kitchen_scene(base, split, k)
     sp = ScenePaths(out / split, f"kitchen_{k}")
-    seed = 1000 * (split == "test") + k
+    seed = 1000 * SPLITS.index(split) + k
     if not (sp.metrics("mesh")).is_file():
         with stage_run("capture", sp.capture, seed) as r:
             build_capture(f"{split}_{k}", scene, to_typed(CaptureConfig, cfg.capture, "capture"), r.dir, r.rng, ROOT)
@@ -169,8 +171,8 @@ def summarise(rows: list[dict], models: list[str]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--split", default="test", choices=["train", "test"])
-    ap.add_argument("--kitchens", type=int, nargs="+", default=list(range(20)))
+    ap.add_argument("--split", default="test", choices=list(SPLITS))
+    ap.add_argument("--kitchens", type=int, nargs="+", default=None, help="default: 0 .. 19 (hand: its 4)")
     ap.add_argument("--detect", nargs="+", default=["capture", "builtin", "none"])
     ap.add_argument("--weights", type=Path, default=BenchPaths(ROOT / "bench").detector_weights,
                     help="the built-in detector's weights (the detector stage's output)")
@@ -185,6 +187,10 @@ def main() -> None:
     ap.add_argument("--tag", default="", help="write decompose and articulate to by_detector/<model>-TAG/ "
                     "(the detections of by_detector/<model>/ are read; the summary is summary-TAG.json)")
     a = ap.parse_args()
+    if a.kitchens is None:
+        a.kitchens = list(range(len(HAND) if a.split == "hand" else 20))
+    if a.split == "hand" and max(a.kitchens) >= len(HAND):
+        raise SystemExit(f"error: --kitchens {' '.join(map(str, a.kitchens))}: the hand split has kitchens 0 .. {len(HAND) - 1}")
     if a.set and not a.tag:
         raise SystemExit("error: --set needs a --tag, so that the variant does not overwrite the default's outputs")
     if any(not o.split("=")[0].lstrip("+~").startswith(("decompose.", "articulate.")) for o in a.set):

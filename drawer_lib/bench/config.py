@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.synth.splits import SPLITS
+from drawer_lib.synth.splits import HAND, SPLITS
 
 GEOMETRY_KEYS = ("chamfer_l1", "fscore_1cm", "fscore_2cm")  # a kitchen's mesh against its GT (its metrics.json)
 
@@ -49,7 +49,7 @@ class BenchConfig:
 
     seed: int = 0
     kitchens: list[int] = field(default_factory=lambda: list(range(20)))
-    splits: list[str] = field(default_factory=lambda: list(SPLITS))
+    splits: list[str] = field(default_factory=lambda: ["train", "test"])
     base_scene: str = "kitchen_small"
     detections: str = "noisy_generic"
     depth: str = "sensor"
@@ -65,3 +65,6 @@ class BenchConfig:
         if "train" not in self.splits or any(s not in SPLITS for s in self.splits):
             raise ConfigError(f"bench.splits = {self.splits}: splits of {SPLITS}, the train split among them "
                               "(the decision weights are fitted on it)")
+        if "hand" in self.splits and max(self.kitchens) >= len(HAND):
+            raise ConfigError(f"bench.splits has the hand split, which has kitchens 0 .. {len(HAND) - 1}; "
+                              f"bench.kitchens = {self.kitchens}")

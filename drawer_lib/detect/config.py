@@ -2,6 +2,7 @@
 detector's training (conf/detector/). Sizes in pixels."""
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.hub import HubModel
@@ -107,7 +108,11 @@ class DetectorTrainConfig:
     renderer's segmentation (background, front, a front's ``edge_px`` border, handle, object);
     ``steps`` of Adam at ``lr`` on random ``crop`` crops, ``batch`` at a time (colour and scale
     jittered by ``color_jitter`` and ``scale_jitter``: :func:`drawer_lib.detect.train._crop_batch`);
-    scored on the test split's kitchens ``eval_kitchens`` (never trained or tuned on)."""
+    scored on the test split's kitchens ``eval_kitchens`` (never trained or tuned on). ``layout``:
+    keys of the kitchens' ``layout`` block (:class:`~drawer_lib.synth.config.LayoutConfig`)
+    merged over each fit kitchen's, never over the kitchens it is scored on: domain
+    randomisation, the fit drawing sizes and handle rates the train split does not (its keys
+    are checked when the fit starts, :func:`drawer_lib.detect.train.run_train_detector`)."""
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
@@ -123,6 +128,7 @@ class DetectorTrainConfig:
     scale_jitter: float = 1.0
     log_every: int = 100
     iou_match: float = 0.5
+    layout: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.kitchens:

@@ -2,6 +2,7 @@
 Adam on random crops with class-balanced cross-entropy, then the 2D instance precision and recall
 of its fronts on the test split's kitchens, which it never saw."""
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,11 +15,11 @@ from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.detect.builtin import CLASSES, MEAN, STD, TinyUNet, class_probs, decode_instances, normalise, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
-from drawer_lib.errors import InputError, NonFiniteError
+from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.metrics.detections import match_fronts
-from drawer_lib.synth.config import RenderConfig
 from drawer_lib.paths import bench_name
 from drawer_lib.runner import Curve, StageRun
+from drawer_lib.synth.config import LayoutConfig, RenderConfig
 
 
 @dataclass
@@ -153,10 +154,14 @@ def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Rende
     """Render the train split's kitchens ``cfg.kitchens``, fit the built-in detector, write
     ``weights.pt`` and ``curve.csv`` (loss against time), and score it on the train views and
     on the test split's kitchens ``cfg.eval_kitchens``."""
+    unknown = set(cfg.layout) - {f.name for f in dataclasses.fields(LayoutConfig)}
+    if unknown:
+        raise ConfigError(f"detector.layout: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
+
     def views(split: str, kitchens: list[int]) -> list:
         out = []
         for k in run.progress(kitchens, desc=f"render {split}", total=len(kitchens)):
-            synth = kitchen_scene(base_scene, split, k).synth
+            synth = kitchen_scene(base_scene, split, k, layout=cfg.layout if split == "train" else None).synth
             frames = list(range(0, synth.camera.n_frames, cfg.frame_every))
             out += list(render_views(synth, render, frames, cfg.edge_px))
         return out

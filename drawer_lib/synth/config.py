@@ -21,6 +21,37 @@ def _check(cond: bool, msg: str) -> None:
         raise ConfigError(msg)
 
 
+MODULE_WIDTH = (0.25, 1.2)  # m, a written module's width
+
+
+def _check_modules(m: dict) -> None:
+    """:attr:`LayoutConfig.modules` is well formed (its docstring), or a ConfigError naming the entry."""
+    _check(set(m) <= {"base", "wall", "tall"}, f"layout.modules: unknown runs {sorted(set(m) - {'base', 'wall', 'tall'})} "
+           "(base, wall, tall)")
+    _check(bool(m.get("base")), "layout.modules.base: at least one base module is needed")
+    runs = {}
+    for run, known in (("base", BASE_TYPES + FIXED_TYPES), ("wall", WALL_TYPES)):
+        total = 0.0
+        for i, e in enumerate(m.get(run) or []):
+            where = f"layout.modules.{run}[{i}] = {e!r}"
+            _check(isinstance(e, (list, tuple)) and len(e) == 2, f"{where}: expected [type, width]")
+            _check(e[0] in known, f"{where}: unknown type (known: {known})")
+            _check(isinstance(e[1], (int, float)) and MODULE_WIDTH[0] <= e[1] <= MODULE_WIDTH[1],
+                   f"{where}: width must be in [{MODULE_WIDTH[0]}, {MODULE_WIDTH[1]}] m")
+            total += float(e[1])
+        runs[run] = total
+    _check(runs["wall"] <= runs["base"] + 1e-9,
+           f"layout.modules: the wall run ({runs['wall']:.2f} m) is longer than the base run ({runs['base']:.2f} m)")
+    sides = []
+    for i, e in enumerate(m.get("tall") or []):
+        where = f"layout.modules.tall[{i}] = {e!r}"
+        _check(isinstance(e, (list, tuple)) and len(e) == 2 and e[0] in ("left", "right"),
+               f"{where}: expected [left|right, type]")
+        _check(e[1] in TALL_TYPES, f"{where}: unknown type (known: {TALL_TYPES})")
+        _check(e[0] not in sides, f"{where}: a second tall unit on the {e[0]}")
+        sides.append(e[0])
+
+
 @dataclass(frozen=True)
 class LayoutConfig:
     """What the kitchen is made of. Module types are drawn with the given weights.
@@ -37,7 +68,15 @@ class LayoutConfig:
     turned by a yaw drawn from ``microwave_yaw_deg``; ``yaw_deg``: the whole kitchen turns by a
     yaw drawn from this range about the vertical (cabinets not aligned with the world axes).
     The defaults of the keys added after the first release (tall_types, tall_width,
-    microwaves, microwave_yaw_deg, yaw_deg, no_handle_p) leave earlier kitchens unchanged.
+    microwaves, microwave_yaw_deg, yaw_deg, no_handle_p, modules) leave earlier kitchens unchanged.
+
+    ``modules`` writes the kitchen by hand instead of drawing it: ``base`` and ``wall`` are the
+    runs from left to right as ``[type, width m]`` (base types and ``appliance`` / ``sink``, the
+    fixed fronts; widths 0.25 to 1.2 m), ``tall`` the tall units as ``[side, type]`` (left /
+    right, at most one each). The wall run is centred over the base run and must not be longer.
+    The counts, type weights and widths above are then not read; materials, hinge sides,
+    handles (one of ``handle_styles``, ``no_handle_p``), appliances' doors, microwaves, objects
+    and the yaw are still drawn from the seed.
     """
 
     base_modules: int = 4
@@ -70,8 +109,11 @@ class LayoutConfig:
     microwave_yaw_deg: list[float] = field(default_factory=lambda: [-35.0, 35.0])
     yaw_deg: list[float] = field(default_factory=lambda: [0.0, 0.0])
     no_handle_p: float = 0.0
+    modules: dict[str, list[list[str | float]]] | None = None
 
     def __post_init__(self):
+        if self.modules is not None:
+            _check_modules(self.modules)
         _check(self.base_modules >= 1, f"layout.base_modules = {self.base_modules} must be >= 1")
         _check(self.wall_modules >= 0, f"layout.wall_modules = {self.wall_modules} must be >= 0")
         _check(0 <= self.tall_units <= 2, f"layout.tall_units = {self.tall_units} must be 0, 1 or 2")

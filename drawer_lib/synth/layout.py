@@ -547,7 +547,9 @@ def _wall_module(b: _Builder, kind: str, x0: float, x1: float) -> None:
         raise ConfigError(f"unknown wall module type {kind!r} (known: {WALL_TYPES})")
 
 
-def _tall_unit(b: _Builder, x0: float, x1: float, top: float) -> None:
+def _tall_unit(b: _Builder, x0: float, x1: float, top: float, kind: str | None = None) -> None:
+    """A tall unit between x0 and x1: of ``kind`` (one of TALL_TYPES), or drawn from
+    ``tall_types`` when None."""
     L, g = b.L, b.L.front_gap
     z0, D = L.plinth_height, L.base_depth
     _carcass(b, x0, x1, z0, top, D)
@@ -555,13 +557,13 @@ def _tall_unit(b: _Builder, x0: float, x1: float, top: float) -> None:
     zm = z0 + 0.72
     hinge = "left" if b.rng.random() < 0.5 else "right"
     free = "right" if hinge == "left" else "left"
-    if set(L.tall_types) != {"split"}:
+    if kind is None and set(L.tall_types) != {"split"}:
         names = [k for k, w in L.tall_types.items() if w > 0]
         p = np.array([L.tall_types[k] for k in names], np.float64)
         kind = names[b.rng2.choice(len(names), p=p / p.sum())]
-        if kind != "split":
-            _tall_doors(b, kind, Rect(x0 + g / 2, x1 - g / 2, z0 + g / 2, top - g / 2, y), hinge)
-            return
+    if kind is not None and kind != "split":
+        _tall_doors(b, kind, Rect(x0 + g / 2, x1 - g / 2, z0 + g / 2, top - g / 2, y), hinge)
+        return
     upper = Rect(x0 + g / 2, x1 - g / 2, zm + g / 2, top - g / 2, y)
     lower = Rect(x0 + g / 2, x1 - g / 2, z0 + g / 2, zm - g / 2, y)
     style = b.style
@@ -721,10 +723,15 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     shared = [t for t in L.require_types if t in BASE_TYPES and t in WALL_TYPES]
     req_base = [t for t in L.require_types if t in BASE_TYPES and t not in WALL_TYPES] + shared
     req_wall = [t for t in L.require_types if t in WALL_TYPES and t not in BASE_TYPES]
-    base_kinds = _sample_types(rng, L.base_modules, L.base_types, req_base, L.fixed_fronts)
-    wall_kinds = _sample_types(rng, L.wall_modules, L.wall_types, req_wall, 0)
-    base_w = [_width(rng, L, k) for k in base_kinds]
-    wall_w = [_width(rng, L, k) for k in wall_kinds]
+    if L.modules is None:
+        base_kinds = _sample_types(rng, L.base_modules, L.base_types, req_base, L.fixed_fronts)
+        wall_kinds = _sample_types(rng, L.wall_modules, L.wall_types, req_wall, 0)
+        base_w = [_width(rng, L, k) for k in base_kinds]
+        wall_w = [_width(rng, L, k) for k in wall_kinds]
+    else:  # written by hand (LayoutConfig.modules)
+        base_kinds, base_w = [str(t) for t, _ in L.modules["base"]], [float(w) for _, w in L.modules["base"]]
+        wall = L.modules.get("wall") or []
+        wall_kinds, wall_w = [str(t) for t, _ in wall], [float(w) for _, w in wall]
 
     run = float(sum(base_w))
     xs = np.concatenate([[0.0], np.cumsum(base_w)])
@@ -743,13 +750,18 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     top = L.plinth_height + L.tall_height
     x_lo, x_hi = 0.0, run
     tall_w = L.tall_width
-    sides = [] if L.tall_units == 0 else (["left", "right"] if L.tall_units == 2 else [["left", "right"][rng.integers(2)]])
-    for side in sides:
+    if L.modules is None:
+        sides = [] if L.tall_units == 0 else (["left", "right"] if L.tall_units == 2 else [["left", "right"][rng.integers(2)]])
+        tall_kinds: list[str | None] = [None] * len(sides)
+    else:
+        sides = [str(sd) for sd, _ in L.modules.get("tall") or []]
+        tall_kinds = [str(t) for _, t in L.modules.get("tall") or []]
+    for side, kind in zip(sides, tall_kinds):
         if side == "left":
-            _tall_unit(b, -tall_w, 0.0, top)
+            _tall_unit(b, -tall_w, 0.0, top, kind)
             x_lo = -tall_w
         else:
-            _tall_unit(b, run, run + tall_w, top)
+            _tall_unit(b, run, run + tall_w, top, kind)
             x_hi = run + tall_w
 
     # plinths, counter, backsplash

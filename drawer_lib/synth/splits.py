@@ -1,6 +1,7 @@
 """The benchmark splits of procedural kitchens: a ``train`` split that perception is tuned on
 and a ``test`` split it never is (other seeds *and* other distributions of sizes, styles and
-counts). Kitchen ``k`` of a split is a fixed function of ``(split, k)``.
+counts); and ``hand``, four kitchens written by hand (``layout.modules``), never tuned on. Kitchen ``k``
+of a split is a fixed function of ``(split, k)``.
 
 | | train (seeds 100 + k) | test (seeds 500 + k) |
 |---|---|---|
@@ -23,11 +24,56 @@ test split is kept as it was.
 
 Both splits draw every module type (the sliding door without a partner, fridges with one
 and two doors, pantry doors, ovens, dishwashers, microwaves); the test split's weights differ.
+
+The ``hand`` split (:data:`HAND`) is not drawn: each kitchen's runs of modules, widths, heights
+and handle style were written by hand as a kitchen planner would, in combinations neither split
+draws (a galley of 30 cm units, 80 cm drawer banks under a wall of lift-up flaps, tall units at
+both ends, tall 85 cm carcasses with recessed pulls and push-to-open fronts). Only materials,
+hinge sides, objects and the camera's walk come from the seed.
 """
+
+import copy
 
 import numpy as np
 
-SPLITS = ("train", "test")
+SPLITS = ("train", "test", "hand")
+
+# the hand split: {seed, layout, camera} per kitchen (LayoutConfig.modules: [type, width m] left to right)
+HAND = [
+    {"seed": 900, "layout": {  # a galley of narrow units, edge pulls
+        "modules": {"base": [["drawers", 0.3], ["door", 0.3], ["drawers", 0.45], ["oven", 0.6], ["drawer_door", 0.45],
+                             ["door", 0.3]],
+                    "wall": [["door", 0.3], ["door", 0.3], ["flap_up", 0.6], ["door", 0.45], ["door", 0.45]]},
+        "handle_styles": ["edge"], "no_handle_p": 0.0, "fixed_fronts": 0, "microwaves": 0, "yaw_deg": [-15.0, -15.0],
+        "carcass_height": 0.8, "base_depth": 0.6, "plinth_height": 0.1, "wall_bottom": 1.45, "wall_height": 0.72,
+        "wall_depth": 0.32, "front_gap": 0.003, "front_thickness": 0.019},
+     "camera": {"n_frames": 48, "width": 200, "height": 150}},
+    {"seed": 901, "layout": {  # wide drawer banks under lift-up flaps, a fridge, long bars
+        "modules": {"base": [["drawers", 0.8], ["drawers", 0.8], ["sink", 1.0], ["dishwasher", 0.6]],
+                    "wall": [["flap_up", 0.8], ["flap_up", 0.8], ["double_door", 1.0]],
+                    "tall": [["right", "fridge1"]]},
+        "handle_styles": ["bar"], "no_handle_p": 0.0, "microwaves": 1, "yaw_deg": [10.0, 10.0],
+        "carcass_height": 0.72, "base_depth": 0.6, "plinth_height": 0.15, "wall_bottom": 1.5, "wall_height": 0.4,
+        "wall_depth": 0.35, "tall_height": 2.05, "tall_width": 0.6, "front_gap": 0.002, "front_thickness": 0.018},
+     "camera": {"n_frames": 60, "width": 320, "height": 240}},
+    {"seed": 902, "layout": {  # tall units at both ends, knobs
+        "modules": {"base": [["door", 0.5], ["drawers", 0.5], ["double_door", 1.0]],
+                    "wall": [["door", 0.5], ["sliding", 1.0], ["door", 0.5]],
+                    "tall": [["left", "pantry"], ["right", "fridge2"]]},
+        "handle_styles": ["knob"], "no_handle_p": 0.0, "microwaves": 0, "yaw_deg": [0.0, 0.0],
+        "carcass_height": 0.76, "base_depth": 0.56, "plinth_height": 0.08, "wall_bottom": 1.55, "wall_height": 0.65,
+        "wall_depth": 0.3, "tall_height": 2.2, "tall_width": 0.6, "front_gap": 0.003, "front_thickness": 0.02},
+     "camera": {"n_frames": 48, "width": 200, "height": 150}},
+    {"seed": 903, "layout": {  # tall carcasses, recessed pulls, some push-to-open fronts, glass and a lone slider
+        "modules": {"base": [["drawer_door", 0.6], ["drawers", 0.4], ["appliance", 0.6], ["double_door", 0.9],
+                             ["drawers", 0.6]],
+                    "wall": [["sliding_single", 0.9], ["door", 0.4], ["glass_door", 0.6], ["double_door", 0.9]],
+                    "tall": [["left", "split"]]},
+        "handle_styles": ["recessed"], "no_handle_p": 0.15, "microwaves": 0, "yaw_deg": [-30.0, -30.0],
+        "carcass_height": 0.85, "base_depth": 0.62, "plinth_height": 0.1, "wall_bottom": 1.6, "wall_height": 0.7,
+        "wall_depth": 0.36, "tall_height": 2.15, "tall_width": 0.6, "front_gap": 0.004, "front_thickness": 0.022},
+     "camera": {"n_frames": 48, "width": 200, "height": 150}},
+]
 
 _CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
 _CAM_LARGE = {"n_frames": 60, "width": 320, "height": 240}
@@ -40,6 +86,10 @@ def split_synth(split: str, k: int) -> dict:
         raise ValueError(f"unknown split {split!r} (known: {SPLITS})")
     if k < 0:
         raise ValueError(f"kitchen index {k} must be >= 0")
+    if split == "hand":
+        if k >= len(HAND):
+            raise ValueError(f"the hand split has kitchens 0 .. {len(HAND) - 1}, not {k}")
+        return copy.deepcopy(HAND[k])
     g = np.random.default_rng([1000 if split == "train" else 5000, k])
     if split == "train":
         layout = {

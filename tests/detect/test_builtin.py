@@ -10,6 +10,7 @@ import pytest
 import torch
 from helpers import run_stage, scene_paths
 
+from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.detect.builtin import (
     CLASSES,
     EDGE,
@@ -186,9 +187,25 @@ def test_match_fronts_counts_each_true_front_once():
     assert match_fronts([], t, 2, 0.5) == (0, 0, 2)
 
 
+def test_the_fit_kitchens_take_the_layout_keys_and_the_scored_ones_do_not(tmp_path):
+    """detector.layout is merged over the fit (train) kitchens' layout after the split's values,
+    never over the test kitchens it is scored on; an unknown key stops the fit before any work."""
+    base = {"source": "synth", "synth": {"seed": 0, "layout": {"module_widths": [0.5]}}}
+    over = {"module_widths": [0.3, 0.8], "no_handle_p": 0.2}
+    fit = kitchen_scene(base, "train", 3, layout=over).synth.layout
+    plain = kitchen_scene(base, "train", 3).synth.layout
+    assert fit.module_widths == [0.3, 0.8] and fit.no_handle_p == 0.2
+    assert plain.module_widths == [0.5] and plain.no_handle_p == 0.1  # the train split's own rate
+    assert fit.carcass_height == plain.carcass_height  # the split's other values stay
+    r = run_stage("detector", tmp_path, "detector.kitchens=[0]", "detector.eval_kitchens=[0]",
+                  "+detector.layout.module_width=[0.3]")
+    assert r.returncode != 0 and "detector.layout: unknown keys ['module_width']" in r.stderr
+    assert not (tmp_path / "bench" / "detector").exists()
+
+
 def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     short = ["detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=6", "detector.log_every=3",
-             "detector.frame_every=16", "detector.crop=64"]
+             "detector.frame_every=16", "detector.crop=64", "+detector.layout.no_handle_p=0.5"]
     r = run_stage("detector", tmp_path, *short)
     assert r.returncode == 0, r.stderr[-3000:]
     d = tmp_path / "bench" / "detector"

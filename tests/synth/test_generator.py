@@ -27,15 +27,28 @@ from drawer_lib.synth.model import KitchenRenderer, build_model
 
 SEEDS = [0, 1, 5]
 SPLIT_KITCHENS = [("train", 3), ("test", 11), ("test", 6)]  # ovens, microwaves, fridges, yaw, recessed pulls
+# a kitchen written by hand (layout.modules): narrow and wide fronts, fixed fronts, both tall kinds
+HAND = {"seed": 9, "layout": {"modules": {
+    "base": [["drawers", 0.3], ["drawers", 0.8], ["sink", 1.0], ["dishwasher", 0.6], ["drawer_door", 0.45]],
+    "wall": [["door", 0.3], ["flap_up", 0.8], ["sliding", 1.0], ["door", 0.45]],
+    "tall": [["left", "fridge2"], ["right", "split"]]},
+    "handle_styles": ["knob"], "yaw_deg": [-20.0, 20.0]}}
 
 
 def split_config(split: str, k: int) -> SynthConfig:
     return to_typed(SynthConfig, OmegaConf.create(split_synth(split, k)), "synth", strict=False)
 
 
-@pytest.fixture(scope="module", params=SEEDS + SPLIT_KITCHENS, ids=str)
+def hand_config(d: dict = HAND) -> SynthConfig:
+    return to_typed(SynthConfig, OmegaConf.create(d), "synth", strict=False)
+
+
+@pytest.fixture(scope="module", params=SEEDS + SPLIT_KITCHENS + ["hand"], ids=str)
 def kitchen(request):
-    cfg = SynthConfig(seed=request.param) if isinstance(request.param, int) else split_config(*request.param)
+    if request.param == "hand":
+        cfg = hand_config()
+    else:
+        cfg = SynthConfig(seed=request.param) if isinstance(request.param, int) else split_config(*request.param)
     layout = sample_layout(cfg)
     cam = Intrinsics.from_fovy(np.deg2rad(60), 64, 48)
     return layout, build_model(layout, cam), layout_parts(layout)
@@ -297,6 +310,17 @@ def test_splits_are_fixed_and_disjoint():
         split_config("train", k), split_config("test", k)
     with pytest.raises(ValueError, match="unknown split"):
         split_synth("val", 0)
+    hand = [split_config("hand", k) for k in range(4)]  # written by hand: every kitchen builds
+    assert all(c.layout.modules is not None for c in hand)
+    assert not {c.seed for c in hand} & (train | test)
+    with pytest.raises(ValueError, match="kitchens 0 .. 3"):
+        split_synth("hand", 4)
+    first = split_synth("hand", 0)
+    first["layout"]["modules"]["base"].clear()  # a copy: the split's table is not touched
+    assert split_synth("hand", 0)["layout"]["modules"]["base"]
+    for c in hand:
+        parts = layout_parts(sample_layout(c))
+        assert sum(p.articulated for p in parts.parts) >= 13
 
 
 def test_wide_generator_makes_each_new_case():
@@ -311,3 +335,48 @@ def test_wide_generator_makes_each_new_case():
         assert abs(layout.pose[2, 2] - 1) < 1e-12  # a yaw about z only
     assert ("flap", "bottom", "door") in fams  # oven / dishwasher doors
     assert max(tall) > 1.9  # full-height fridge / pantry doors
+
+
+def test_a_kitchen_written_by_hand_has_its_modules_in_order():
+    """layout.modules: the base and wall runs left to right at the written widths, the tall
+    units of the written kinds on their sides; the same seed gives the same kitchen."""
+    cfg = hand_config()
+    layout = sample_layout(cfg)
+    R = layout.pose[:3, :3]
+    x_of = lambda e: float((R.T @ (np.asarray(e.front.center) - layout.pose[:3, 3]))[0])  # noqa: E731
+    fronts = [e for e in layout.entities if e.front is not None and e.family != "object"]
+    base = sorted((e for e in fronts if e.front.center[2] < 1.0 and e.front.size[1] < 1.2), key=x_of)
+    g = cfg.layout.front_gap
+    # base run: 3 drawers 0.3 wide, 3 drawers 0.8, the sink's false drawer 1.0 over two doors,
+    # the dishwasher's door 0.6, a drawer over a door 0.45
+    widths = sorted({round(e.front.size[0] + g, 3) for e in base})
+    assert widths == [0.3, 0.45, 0.5, 0.6, 0.8, 1.0]  # 0.5: the sink's doors, half its width
+    assert sum(e.family == "false_front" for e in fronts) == 1
+    tall = [e for e in fronts if e.front.size[1] > 1.2]  # fridge2's upper door, the split unit's upper door
+    assert len(tall) == 2 and {e.family for e in tall} == {"door"}
+    run_end = 0.3 + 0.8 + 1.0 + 0.6 + 0.45  # the base run; tall units stand beyond its ends
+    assert x_of(min(tall, key=x_of)) < 0 and x_of(max(tall, key=x_of)) > run_end
+    walls = [e for e in fronts if e.front.center[2] > 1.4 and e.front.size[1] < 1.2]
+    assert sorted(round(e.front.size[0] + g, 3) for e in walls if e.family != "sliding") == [0.3, 0.45, 0.8]
+    assert sum(e.family == "sliding" for e in walls) == 2
+    assert layout_parts(sample_layout(cfg)).to_json() == layout_parts(layout).to_json()
+
+
+@pytest.mark.parametrize("modules, msg", [
+    ({"wall": [["door", 0.4]]}, "at least one base module"),
+    ({"base": [["door", 0.4]], "tall": []}, None),
+    ({"base": [["drawer", 0.4]]}, r"base\[0\] = \['drawer', 0.4\]: unknown type"),
+    ({"base": [["door", 0.1]]}, r"width must be in \[0.25, 1.2\]"),
+    ({"base": [["door", 0.4]], "wall": [["door", 0.3], ["door", 0.3]]}, "wall run \\(0.60 m\\) is longer"),
+    ({"base": [["door", 0.4]], "tall": [["left", "pantry"], ["left", "fridge1"]]}, "second tall unit on the left"),
+    ({"base": [["door", 0.4]], "island": []}, "unknown runs"),
+])
+def test_a_written_kitchen_that_cannot_be_built_is_refused(modules, msg):
+    from drawer_lib.errors import ConfigError
+
+    d = {"seed": 0, "layout": {"modules": modules}}
+    if msg is None:
+        assert hand_config(d).layout.modules["base"] == [["door", 0.4]]
+        return
+    with pytest.raises(ConfigError, match=msg):
+        hand_config(d)
