@@ -172,7 +172,7 @@ def summarise(rows: list[dict], models: list[str]) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--split", default="test", choices=list(SPLITS))
-    ap.add_argument("--kitchens", type=int, nargs="+", default=None, help="default: 0 .. 19 (hand: its 4)")
+    ap.add_argument("--kitchens", type=int, nargs="+", default=None, help="default: 0 .. 19 (hand: its 8)")
     ap.add_argument("--detect", nargs="+", default=["capture", "builtin", "none"])
     ap.add_argument("--weights", type=Path, default=BenchPaths(ROOT / "bench").detector_weights,
                     help="the built-in detector's weights (the detector stage's output)")

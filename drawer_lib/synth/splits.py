@@ -1,6 +1,6 @@
 """The benchmark splits of procedural kitchens: a ``train`` split that perception is tuned on
 and a ``test`` split it never is (other seeds *and* other distributions of sizes, styles and
-counts); and ``hand``, four kitchens written by hand (``layout.modules``), never tuned on. Kitchen ``k``
+counts); and ``hand``, eight kitchens written by hand (``layout.modules``), never tuned on. Kitchen ``k``
 of a split is a fixed function of ``(split, k)``.
 
 | | train (seeds 100 + k) | test (seeds 500 + k) |
@@ -27,9 +27,10 @@ and two doors, pantry doors, ovens, dishwashers, microwaves); the test split's w
 
 The ``hand`` split (:data:`HAND`) is not drawn: each kitchen's runs of modules, widths, heights
 and handle style were written by hand as a kitchen planner would, in combinations neither split
-draws (a galley of 30 cm units, 80 cm drawer banks under a wall of lift-up flaps, tall units at
-both ends, tall 85 cm carcasses with recessed pulls and push-to-open fronts). Only materials,
-hinge sides, objects and the camera's walk come from the seed.
+draws (a galley of 30 cm units; 80 cm drawer banks under lift-up flaps; tall units at both ends;
+85 cm carcasses with recessed pulls and push-to-open fronts; a compact studio; doors only; drawer
+banks with half the fronts push-to-open; a long run with every kind). Only materials, hinge
+sides, objects and the camera's walk come from the seed.
 """
 
 import copy
@@ -73,6 +74,36 @@ HAND = [
         "carcass_height": 0.85, "base_depth": 0.62, "plinth_height": 0.1, "wall_bottom": 1.6, "wall_height": 0.7,
         "wall_depth": 0.36, "tall_height": 2.15, "tall_width": 0.6, "front_gap": 0.004, "front_thickness": 0.022},
      "camera": {"n_frames": 48, "width": 200, "height": 150}},
+    {"seed": 904, "layout": {  # a compact studio kitchen: few units, a microwave, small knobs, low wall flap
+        "modules": {"base": [["door", 0.45], ["oven", 0.6], ["drawers", 0.45]],
+                    "wall": [["flap_down", 0.45], ["door", 0.6]]},
+        "handle_styles": ["small_knob"], "no_handle_p": 0.0, "microwaves": 1, "yaw_deg": [25.0, 25.0],
+        "carcass_height": 0.7, "base_depth": 0.55, "plinth_height": 0.12, "wall_bottom": 1.4, "wall_height": 0.5,
+        "wall_depth": 0.3, "front_gap": 0.003, "front_thickness": 0.019},
+     "camera": {"n_frames": 48, "width": 200, "height": 150}},
+    {"seed": 905, "layout": {  # doors only, single and double, long bars
+        "modules": {"base": [["double_door", 0.8], ["door", 0.4], ["door", 0.4], ["sink", 0.8], ["door", 0.6]],
+                    "wall": [["double_door", 0.8], ["door", 0.4], ["door", 0.4], ["double_door", 0.8]]},
+        "handle_styles": ["bar"], "no_handle_p": 0.0, "microwaves": 0, "yaw_deg": [35.0, 35.0],
+        "carcass_height": 0.78, "base_depth": 0.6, "plinth_height": 0.1, "wall_bottom": 1.5, "wall_height": 0.8,
+        "wall_depth": 0.35, "front_gap": 0.003, "front_thickness": 0.02},
+     "camera": {"n_frames": 48, "width": 200, "height": 150}},
+    {"seed": 906, "layout": {  # drawer banks under lift-up flaps, half the fronts push-to-open
+        "modules": {"base": [["drawers", 0.6], ["drawers", 0.6], ["drawers", 0.9], ["dishwasher", 0.6]],
+                    "wall": [["flap_up", 0.6], ["flap_up", 0.6], ["flap_up", 0.9]]},
+        "handle_styles": ["edge"], "no_handle_p": 0.5, "microwaves": 0, "yaw_deg": [-40.0, -40.0],
+        "carcass_height": 0.8, "base_depth": 0.6, "plinth_height": 0.1, "wall_bottom": 1.55, "wall_height": 0.45,
+        "wall_depth": 0.35, "front_gap": 0.003, "front_thickness": 0.019},
+     "camera": {"n_frames": 48, "width": 200, "height": 150}},
+    {"seed": 907, "layout": {  # a long run with every kind: sliding pairs and a lone slider, glass, two tall units
+        "modules": {"base": [["drawers", 0.6], ["door", 0.4], ["oven", 0.6], ["drawers", 0.3], ["double_door", 1.2],
+                             ["drawer_door", 0.5]],
+                    "wall": [["sliding", 1.2], ["sliding_single", 0.8], ["door", 0.4], ["glass_double", 0.8]],
+                    "tall": [["left", "fridge2"], ["right", "split"]]},
+        "handle_styles": ["knob"], "no_handle_p": 0.0, "microwaves": 1, "yaw_deg": [5.0, 5.0],
+        "carcass_height": 0.74, "base_depth": 0.58, "plinth_height": 0.1, "wall_bottom": 1.5, "wall_height": 0.7,
+        "wall_depth": 0.33, "tall_height": 2.0, "tall_width": 0.65, "front_gap": 0.003, "front_thickness": 0.019},
+     "camera": {"n_frames": 60, "width": 320, "height": 240}},
 ]
 
 _CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
