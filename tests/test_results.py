@@ -2,13 +2,14 @@
 a missing one says so in its row, the spread of a benchmark figure, the block replaced in place."""
 
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
 
 from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths
-from drawer_lib.report.results import (BEGIN, END, Run, replace_block, results_block, rows, run_time,
-                                       seed_experiments, seed_spread)
+from drawer_lib.report.results import (BEGIN, END, Run, provenance, replace_block, results_block, rows,
+                                       run_time, seed_experiments, seed_spread)
 
 
 def _put(path: Path, d: dict) -> None:
@@ -99,3 +100,24 @@ def test_the_run_time_says_whether_the_run_was_from_scratch():
     assert run_time(s) == "28.7 min (from scratch, 64 stages, 2 at a time, 1 thread each); stage walls sum to 56.7 min"
     part = run_time({**s, "force": False, "n_stages": 14, "wall_s": 447.8, "threads": 2, "stage_wall_s": 846.0})
     assert part.startswith("7.5 min (14 of 64 stages rerun, the rest from DVC's cache, 2 at a time, 2 threads each)")
+
+
+def test_the_provenance_says_whether_the_code_differs_from_the_commit(tmp_path):
+    """dvc.lock and README.md (which a run and this script rewrite) leave the tree the commit's,
+    staged or not, whichever line git lists first; any other tracked change does not."""
+    def git(*a):
+        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *a], cwd=tmp_path, check=True,
+                       capture_output=True)
+
+    git("init", "-q")
+    for f in ("README.md", "dvc.lock", "code.py"):
+        (tmp_path / f).write_text("0\n")
+    git("add", ".")
+    git("commit", "-qm", "c")
+    assert "uncommitted" not in provenance(tmp_path)
+    (tmp_path / "README.md").write_text("1\n")  # unstaged: git lists " M README.md" first
+    (tmp_path / "dvc.lock").write_text("1\n")
+    git("add", "dvc.lock")
+    assert "uncommitted" not in provenance(tmp_path)
+    (tmp_path / "code.py").write_text("1\n")
+    assert "(with uncommitted changes)" in provenance(tmp_path)

@@ -149,10 +149,11 @@ def seed_spread(table: list[list[str]], run: Run, seeds: list[tuple[int, Run]], 
 def provenance(root: Path) -> str:
     """The commit (and whether the tree differs from it), the machine and the date."""
     def git(*a: str) -> str:
-        return subprocess.run(["git", *a], cwd=root, capture_output=True, text=True, check=False).stdout.strip()
+        return subprocess.run(["git", *a], cwd=root, capture_output=True, text=True, check=False).stdout
 
-    commit = git("rev-parse", "--short", "HEAD") or "unknown"
-    # a run rewrites dvc.lock and this script the README: neither makes the code differ from the commit
+    commit = git("rev-parse", "--short", "HEAD").strip() or "unknown"
+    # a run rewrites dvc.lock and this script the README: neither makes the code differ from the
+    # commit. Porcelain lines are "XY path": the leading blank of an unstaged change is kept
     dirty = [x for x in git("status", "--porcelain", "--untracked-files=no").splitlines()
              if x[3:] not in ("dvc.lock", "README.md")]
     try:
