@@ -61,7 +61,7 @@ from drawer_lib.runner import stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
-from drawer_lib.synth.splits import HAND, SPLITS
+from drawer_lib.synth.splits import HAND, SPLITS, missing_kitchens
 
 ROOT = Path(__file__).resolve().parent.parent
 FITTED_DIR = "articulate_fitted"
@@ -189,8 +189,9 @@ def main() -> None:
     a = ap.parse_args()
     if a.kitchens is None:
         a.kitchens = list(range(len(HAND) if a.split == "hand" else 20))
-    if a.split == "hand" and max(a.kitchens) >= len(HAND):
-        raise SystemExit(f"error: --kitchens {' '.join(map(str, a.kitchens))}: the hand split has kitchens 0 .. {len(HAND) - 1}")
+    why = missing_kitchens(a.split, a.kitchens)
+    if why:
+        raise SystemExit(f"error: --kitchens {' '.join(map(str, a.kitchens))}: {why}")
     if a.set and not a.tag:
         raise SystemExit("error: --set needs a --tag, so that the variant does not overwrite the default's outputs")
     if any(not o.split("=")[0].lstrip("+~").startswith(("decompose.", "articulate.")) for o in a.set):

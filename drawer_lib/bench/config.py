@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.synth.splits import HAND, SPLITS
+from drawer_lib.synth.splits import SPLITS, missing_kitchens
 
 GEOMETRY_KEYS = ("chamfer_l1", "fscore_1cm", "fscore_2cm")  # a kitchen's mesh against its GT (its metrics.json)
 
@@ -65,6 +65,6 @@ class BenchConfig:
         if "train" not in self.splits or any(s not in SPLITS for s in self.splits):
             raise ConfigError(f"bench.splits = {self.splits}: splits of {SPLITS}, the train split among them "
                               "(the decision weights are fitted on it)")
-        if "hand" in self.splits and max(self.kitchens) >= len(HAND):
-            raise ConfigError(f"bench.splits has the hand split, which has kitchens 0 .. {len(HAND) - 1}; "
-                              f"bench.kitchens = {self.kitchens}")
+        why = next((w for w in (missing_kitchens(sp, self.kitchens) for sp in self.splits) if w), None)
+        if why:
+            raise ConfigError(f"bench.splits: {why}; bench.kitchens = {self.kitchens}")

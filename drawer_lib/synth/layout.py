@@ -754,8 +754,8 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
         sides = [] if L.tall_units == 0 else (["left", "right"] if L.tall_units == 2 else [["left", "right"][rng.integers(2)]])
         tall_kinds: list[str | None] = [None] * len(sides)
     else:
-        sides = [str(sd) for sd, _ in L.modules.get("tall") or []]
-        tall_kinds = [str(t) for _, t in L.modules.get("tall") or []]
+        tall = L.modules.get("tall") or []
+        sides, tall_kinds = [str(sd) for sd, _ in tall], [str(t) for _, t in tall]
     for side, kind in zip(sides, tall_kinds):
         if side == "left":
             _tall_unit(b, -tall_w, 0.0, top, kind)

@@ -110,6 +110,14 @@ _CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
 _CAM_LARGE = {"n_frames": 60, "width": 320, "height": 240}
 
 
+def missing_kitchens(split: str, kitchens: list[int]) -> str | None:
+    """Why some of ``kitchens`` are not kitchens of ``split`` (the hand split has
+    ``len(HAND)``; the procedural ones any index >= 0), or None when all are."""
+    if split == "hand" and kitchens and max(kitchens) >= len(HAND):
+        return f"the hand split has kitchens 0 .. {len(HAND) - 1}"
+    return None
+
+
 def split_synth(split: str, k: int) -> dict:
     """The ``synth`` block (a partial :class:`~drawer_lib.synth.config.SynthConfig` as a dict,
     merged over the default kitchen) of kitchen ``k`` of ``split``."""
@@ -118,8 +126,9 @@ def split_synth(split: str, k: int) -> dict:
     if k < 0:
         raise ValueError(f"kitchen index {k} must be >= 0")
     if split == "hand":
-        if k >= len(HAND):
-            raise ValueError(f"the hand split has kitchens 0 .. {len(HAND) - 1}, not {k}")
+        why = missing_kitchens(split, [k])
+        if why:
+            raise ValueError(f"{why}, not {k}")
         return copy.deepcopy(HAND[k])
     g = np.random.default_rng([1000 if split == "train" else 5000, k])
     if split == "train":
