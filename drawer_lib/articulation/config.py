@@ -228,6 +228,8 @@ class TypesConfig:
     ``parts.json``, listed by the report and marked in the viewer. ``sliding_needs_track``: the
     score rule types a front sliding only when it has a partner on another track or a track
     along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`).
+    ``drawer_max_height`` (m): where the score rule's ``tall`` feature starts (a front taller
+    than the deepest drawers, which stop near 0.4 m in real kitchens, is a door or a flap).
     ``front_labels``: the labels, besides ``door_labels`` and ``drawer_labels``, a detector
     gives a front (the built-in detector's and generic detections' ``front``); with
     ``use_labels``, a planar segment more than half of whose label votes are other labels
@@ -240,6 +242,7 @@ class TypesConfig:
     min_support: int = 5
     low_margin: float = 1.0
     sliding_needs_track: bool = True
+    drawer_max_height: float = 0.45
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
@@ -263,6 +266,8 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.min_support = {self.min_support} must be >= 0")
         if not self.low_margin >= 0:
             raise ConfigError(f"articulate.types.low_margin = {self.low_margin} must be >= 0")
+        if not 0 < self.drawer_max_height < 10:
+            raise ConfigError(f"articulate.types.drawer_max_height = {self.drawer_max_height} must be in (0, 10) m")
         check_weights(self.prior, "articulate.types.prior")
 
 

@@ -55,7 +55,7 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
     :func:`missing_evidence`; ``excluded``: the others and why). ``blocked``: hypotheses the
     interaction test rules out ({hypothesis: why};
     :func:`~drawer_lib.articulation.interaction.blocked_hypotheses`); ``fixed`` always stays."""
-    common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels)
+    common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels, cfg.drawer_max_height)
     door = {side: door_features(ev, side) for side in ("left", "right")}
     all_scores = score(common, door, weights)
     unseen = missing_evidence(common, cfg) | {k: v for k, v in (blocked or {}).items() if k != "fixed"}

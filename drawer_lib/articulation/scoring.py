@@ -33,6 +33,8 @@ only as features whose weights are fitted.
 | carcass | depth of the cabinet the mesh shows behind it (m, 0 when none) |
 | lab_drawer, lab_door | the fraction of the segment's label votes in drawer_labels / door_labels |
 | support | log(1 + views whose detections matched the segment) / log(50) |
+| tall | how far the front's height exceeds ``drawer_max_height``, in 10 cm, clipped to [0, 2]: a front taller than the deepest drawers (pan drawers stop near 0.4 m) with a pull at its top is a door or a flap (an oven, a dishwasher, a base door with a top pull) |
+| bare_stack | ``stacked`` when the front has no handle, else 0: a handle-less front in a column of coplanar fronts sharing its top or bottom edge has the gap pattern of a drawer bank (push-to-open) |
 | h_free, h_hinge | (door only) the handle's closeness to the free / the hinge edge |
 | beside_free, beside_hinge | (door only) a coplanar front shares the free / the hinge edge |
 """
@@ -67,8 +69,13 @@ def _ramp(d: float) -> float:
     return float(np.clip(1.0 - d / RAMP, 0.0, 1.0))
 
 
-def features(ev: Evidence, drawer_labels: list[str], door_labels: list[str], use_labels: bool) -> dict[str, float]:
-    """The common features (:data:`COMMON`) of a front."""
+TALL_STEP = 0.1  # m: the ``tall`` feature counts the height above ``drawer_max_height`` in these
+
+
+def features(ev: Evidence, drawer_labels: list[str], door_labels: list[str], use_labels: bool,
+             drawer_max_height: float = 0.45) -> dict[str, float]:
+    """The common features (:data:`COMMON`) of a front; ``drawer_max_height`` (m) starts the
+    ``tall`` feature."""
     w, h = ev.size
     f = dict.fromkeys(COMMON, 0.0)
     f["bias"] = 1.0
@@ -93,6 +100,8 @@ def features(ev: Evidence, drawer_labels: list[str], door_labels: list[str], use
         f["lab_drawer"] = sum(v for k, v in ev.labels.items() if k in drawer_labels) / votes
         f["lab_door"] = sum(v for k, v in ev.labels.items() if k in door_labels) / votes
     f["support"] = float(np.clip(np.log1p(ev.support) / np.log(50.0), 0.0, 1.5))
+    f["tall"] = float(np.clip((h - drawer_max_height) / TALL_STEP, 0.0, 2.0))
+    f["bare_stack"] = f["stacked"] if hd is None else 0.0
     return f
 
 

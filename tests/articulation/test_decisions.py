@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 CFG = to_typed(ArticulateConfig, yaml.safe_load((ROOT / "conf/articulate/default.yaml").read_text()), "articulate")
 PRIOR = CFG.types.prior
 PRIOR_PASSES = {"full_height_door", "microwave_door_yaw_0", "microwave_door_yaw_30", "microwave_door_yaw_-40",
-                "mirrored_wall_doors"}
+                "mirrored_wall_doors", "oven_door_top_bar", "knobless_drawer_stack"}
 
 
 def only(hypothesis: str) -> dict[str, dict[str, float]]:
@@ -77,6 +77,24 @@ def test_the_highest_score_wins(hyp):
         assert p.kind == "revolute" and p.extra["hinge"] == hyp.split("_")[1]
     else:
         assert p.kind == "prismatic"
+
+
+def test_tall_and_bare_stack_features():
+    """``tall`` ramps from 0 at drawer_max_height to 2 at 20 cm above it; ``bare_stack`` is
+    ``stacked`` for a front without a handle and 0 with one."""
+
+    def ev(h, stacked, handle):
+        return Evidence(handle=Handle(0.5, 0.9, "horizontal", 30, "masks") if handle else None, size=(0.6, h),
+                        z_mid=0.5, stacked=stacked, beside_left=False, beside_right=False, partner=False, rail=0.0,
+                        carcass=0.5, labels={}, support=30)
+
+    tall = [features(ev(h, 0, True), [], [], True, drawer_max_height=0.45)["tall"] for h in (0.2, 0.45, 0.5, 0.6, 0.65, 2.0)]
+    assert tall == pytest.approx([0.0, 0.0, 0.5, 1.5, 2.0, 2.0])
+    assert features(ev(0.6, 0, True), [], [], True, drawer_max_height=0.7)["tall"] == 0.0
+    assert [features(ev(0.2, st, False), [], [], True)["bare_stack"] for st in (0, 1, 2, 5)] == [0.0, 0.5, 1.0, 1.0]
+    assert features(ev(0.2, 2, True), [], [], True)["bare_stack"] == 0.0
+    with pytest.raises(ConfigError, match="drawer_max_height = 0.0"):
+        TypesConfig(drawer_max_height=0.0)
 
 
 def test_door_hypotheses_mirror_exactly():
@@ -135,8 +153,10 @@ def test_weights_are_checked():
 
 
 def test_the_hard_cases_with_the_prior():
-    """The handle rule the prior encodes gets the cases a handle decides; the ones that need
-    more evidence (an oven's top bar, a lone sliding door, knobless drawers) it gets wrong."""
+    """The handle rule the prior encodes gets the cases a handle decides, an oven's top bar (too
+    tall a front for a drawer) and knobless drawers (a stack of handle-less fronts); the ones
+    that need more evidence (a lone sliding door, a wall door's bar at its bottom corner) it
+    gets wrong."""
     got = {r["name"]: r["passed"] for r in run_cases(CFG, PRIOR)}
     assert set(got) == {c.name for c in CASES}
     assert {n for n, ok in got.items() if ok} == PRIOR_PASSES
