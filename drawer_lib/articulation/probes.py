@@ -54,8 +54,10 @@ def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06)
     within ``band`` beyond that edge and 0.4 to 4 cm in front of the front's plane (proud of it:
     coplanar neighbours are not a track), divided by the front's width; the larger of the two
     edges.
-    An edge with a horizontal surface reaching more than 10 cm behind the plane there across
-    half the front's width or more (a counter top, a shelf) has no track. Returns the longer edge's run as (lo, hi) along u from
+    An edge with an upward-facing surface reaching more than 10 cm behind the plane there across
+    half the front's width or more (a counter top, a shelf seen from above) has no track; a
+    downward-facing one (the underside of a wall cabinet's top, seen through the open half a
+    single sliding door leaves) does not hide it. Returns the longer edge's run as (lo, hi) along u from
     the front's centre (m), or None when no edge has one (fewer than 20 points qualify, or the
     run is broken within the front's width)."""
     c, n, u = np.asarray(front.center), np.asarray(front.normal), np.asarray(front.u)
@@ -65,7 +67,7 @@ def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06)
     hw, hh = front.size[0] / 2, front.size[1] / 2
     near_u = np.abs(pu) < 2.0 * hw
     facing = normals @ n > 0.7
-    flat = np.abs(normals[:, 2]) > 0.7
+    flat = normals[:, 2] > 0.7  # facing up: a counter top or a shelf seen from above
     best: tuple[float, float] | None = None
     for sgn in (1.0, -1.0):
         beyond = sgn * pv - hh
