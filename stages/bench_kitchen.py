@@ -1,5 +1,5 @@
-"""DVC stage ``bench_kitchen@<split>-<k>``: kitchen ``k`` of a benchmark split, built as the
-pipeline builds a scene -> ``<paths.bench>/<split>/kitchen_<k>/`` (``capture/``, ``sdf/``,
+"""DVC stages ``bench_kitchen@<split>-<k>`` and ``bench_hand@<k>`` (the hand split): kitchen ``k``
+of a benchmark split, built as the pipeline builds a scene -> ``<paths.bench>/<split>/kitchen_<k>/`` (``capture/``, ``sdf/``,
 ``mesh/``, ``decompose/`` and ``articulate/`` with the prior weights, whose ``decisions.json``
 the ``fit_decisions`` stage learns from; ``metrics.json``: each step's wall time and the mesh's
 geometry against the ground truth). dvc.yaml passes the benchmark's sensors and geometry as
@@ -34,8 +34,11 @@ from drawer_lib.sdf.config import SdfConfig
 def main(cfg: DictConfig) -> None:
     bc = to_typed(BenchConfig, cfg.bench, "bench")
     if cfg.get("bench_split") is None or cfg.get("bench_kitchen") is None:
-        raise ConfigError("bench_kitchen: pass +bench_split=<train|test> +bench_kitchen=<k>")
+        raise ConfigError("bench_kitchen: pass +bench_split=<train|test|hand> +bench_kitchen=<k>")
     split, k = str(cfg.bench_split), int(cfg.bench_kitchen)
+    if k not in bc.split_kitchens(split):
+        raise ConfigError(f"bench_kitchen: kitchen {k} of the {split} split is not in the benchmark "
+                          f"({bc.split_kitchens(split)})")
     choices = HydraConfig.get().runtime.choices
     want = {"scene": bc.base_scene, "capture/detections": bc.detections, "capture/depth": bc.depth, "sdf": bc.sdf}
     wrong = {g: choices.get(g) for g, v in want.items() if choices.get(g) != v}

@@ -46,7 +46,7 @@ FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.
                # the robot on two parts, no camera (its physics and dataset: tests/robot)
                "robot.max_parts=2", "robot.camera=[0,0]",
                # the benchmark: kitchen 0 of each split, at kitchen_tiny's frames
-               "bench.kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}",
+               "bench.kitchens=[0]", "bench.hand_kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}",
                # the built-in detector: a few steps on one train kitchen (its fit: tests/detect)
                "detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=4", "detector.log_every=2",
                "detector.frame_every=12"]
@@ -147,11 +147,12 @@ def test_repro_builds_capture_then_does_nothing(repo):
     abl = json.loads((d / "reports" / "ablation" / LAYOUT["report"]["table_json"]).read_text())
     assert set(abl["kitchen_tiny"]) == {"textured_mesh", "movable_gs_ste"}
     assert (sp.appearance_dir("movable_gs_ste") / LAYOUT["appearance"]["model"] / "gaussians.ply").exists()
-    # the benchmark: its kitchens, the fitted weights articulate read, both splits' tables
+    # the benchmark: its kitchens, the fitted weights articulate read, every split's table (hand: bench_hand, bench_eval_hand)
     bench = BenchPaths(d / "bench")
     assert read_weights(bench.weights) and json.loads((bench.fit / LAYOUT["metrics"]).read_text())["n_kitchens"] == 1
     assert any(dep["path"] == "bench/fit/weights.json" for dep in lock["articulate@kitchen_tiny"]["deps"])
-    for split in ("train", "test"):
+    assert "bench_hand@0" in lock and "bench_eval_hand" in lock
+    for split in ("train", "test", "hand"):
         assert bench.kitchen(split, 0).parts.is_file()
         m = json.loads((bench.eval(split) / LAYOUT["metrics"]).read_text())
         assert m["fitted_n_kitchens"] == 1 and m["fitted_n_gt"] > 0

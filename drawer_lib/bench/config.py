@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drawer_lib.errors import ConfigError
-from drawer_lib.synth.splits import SPLITS, missing_kitchens
+from drawer_lib.synth.splits import HAND, SPLITS, missing_kitchens
 
 GEOMETRY_KEYS = ("chamfer_l1", "fscore_1cm", "fscore_2cm")  # a kitchen's mesh against its GT (its metrics.json)
 
@@ -45,11 +45,15 @@ class BenchConfig:
     pipeline's mesh, decompose and articulate configs. dvc.yaml passes these choices to the
     ``bench_kitchen`` stage as Hydra overrides; the stage checks that it got them. ``camera``:
     keys of the synth camera block set over the split's (null: the split's own frames; smoke
-    tests and the ``quick`` experiment shrink them)."""
+    tests and the ``quick`` experiment shrink them). ``hand_kitchens``: the kitchens of the
+    ``hand`` split (written by hand, never tuned on) that the ``bench_hand`` stages build the
+    same way and ``bench_eval_hand`` scores (its kitchens differ in number from the procedural
+    splits', so they are not a row of the ``bench_kitchen`` matrix)."""
 
     seed: int = 0
     kitchens: list[int] = field(default_factory=lambda: list(range(20)))
     splits: list[str] = field(default_factory=lambda: ["train", "test"])
+    hand_kitchens: list[int] = field(default_factory=lambda: list(range(len(HAND))))
     base_scene: str = "kitchen_small"
     detections: str = "noisy_generic"
     depth: str = "sensor"
@@ -68,3 +72,18 @@ class BenchConfig:
         why = next((w for w in (missing_kitchens(sp, self.kitchens) for sp in self.splits) if w), None)
         if why:
             raise ConfigError(f"bench.splits: {why}; bench.kitchens = {self.kitchens}")
+        hk = self.hand_kitchens
+        if not hk or len(set(hk)) != len(hk) or any(isinstance(k, bool) or not isinstance(k, int) or k < 0 for k in hk):
+            raise ConfigError(f"bench.hand_kitchens = {hk}: need a list of distinct kitchen indices")
+        why = missing_kitchens("hand", hk)
+        if why:
+            raise ConfigError(f"bench.hand_kitchens = {hk}: {why}")
+
+    def split_kitchens(self, split: str) -> list[int]:
+        """The kitchens the benchmark scores of ``split``: ``hand_kitchens`` for the hand split
+        (unless ``splits`` lists it), ``kitchens`` for the others."""
+        if split == "hand" and split not in self.splits:
+            return self.hand_kitchens
+        if split not in self.splits:
+            raise ConfigError(f"bench: split {split!r} is not scored (bench.splits = {self.splits}, or hand)")
+        return self.kitchens

@@ -303,6 +303,8 @@ def rows(run: Run, variants: list[str], geometry_variants: list[str]) -> list[li
         "[docs/perception.md](docs/perception.md)")
     row("articulation benchmark, train split (the decision weights are fitted on it)", bench("train"),
         "[docs/perception.md](docs/perception.md)")
+    row("articulation benchmark, hand split (kitchens written by hand in combinations neither split draws; never "
+        "tuned on; the same sensors)", bench("hand"), "[docs/perception.md](docs/perception.md)")
 
     def fit() -> str:
         m = _read(BenchPaths(run.bench).fit / LAYOUT["metrics"])
