@@ -1,6 +1,7 @@
 """DVC stages ``bench_eval@<split>`` and ``bench_eval_hand``: every kitchen of a benchmark split
 (the hand split's: ``bench.hand_kitchens``) articulated with the fitted decision weights and
-scored, with its articulation by the prior weights, against its ground truth -> ``<paths.bench>/eval/<split>/`` (``table.md``, ``rows.json``, ``metrics.json``;
+scored, with its articulation by the prior weights, against its ground truth ->
+``<paths.bench>/eval/<split>/`` (``table.md``, ``rows.json``, ``metrics.json``;
 ``kitchen_<k>/articulate/``).
 
     python -m stages.bench_eval -cn dvc_stage +bench_split=test
@@ -25,12 +26,13 @@ def main(cfg: DictConfig) -> None:
     bc = to_typed(BenchConfig, cfg.bench, "bench")
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
     split = cfg.get("bench_split")
-    if split not in [*bc.splits, "hand"]:
-        raise ConfigError(f"bench_eval: pass +bench_split=<one of {[*bc.splits, 'hand']}>, got {split!r}")
+    if split is None:
+        raise ConfigError(f"bench_eval: pass +bench_split=<one of {[*bc.splits, 'hand']}>")
+    kitchens = bc.split_kitchens(split)
     src, dst = bench_paths(cfg)
     weights = resolve_weights(ac.types, src.weights)
     with stage_run("bench_eval", dst.eval(split), seed=bc.seed) as run:
-        run.metrics.update(run_eval(split, bc.split_kitchens(split), src, ac, weights, run))
+        run.metrics.update(run_eval(split, kitchens, src, ac, weights, run))
 
 
 if __name__ == "__main__":

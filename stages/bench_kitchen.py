@@ -1,6 +1,6 @@
 """DVC stages ``bench_kitchen@<split>-<k>`` and ``bench_hand@<k>`` (the hand split): kitchen ``k``
-of a benchmark split, built as the pipeline builds a scene -> ``<paths.bench>/<split>/kitchen_<k>/`` (``capture/``, ``sdf/``,
-``mesh/``, ``decompose/`` and ``articulate/`` with the prior weights, whose ``decisions.json``
+of a benchmark split, built as the pipeline builds a scene -> ``<paths.bench>/<split>/kitchen_<k>/``
+(``capture/``, ``sdf/``, ``mesh/``, ``decompose/`` and ``articulate/`` with the prior weights, whose ``decisions.json``
 the ``fit_decisions`` stage learns from; ``metrics.json``: each step's wall time and the mesh's
 geometry against the ground truth). dvc.yaml passes the benchmark's sensors and geometry as
 Hydra overrides:

@@ -28,3 +28,14 @@ def test_the_hand_kitchens_of_the_dag():
             BenchConfig(hand_kitchens=bad)
     with pytest.raises(ConfigError, match="split 'other' is not scored"):
         bc.split_kitchens("other")
+
+
+def test_the_bench_stages_refuse_a_split_or_kitchen_they_do_not_score(tmp_path):
+    """Before any work: an unknown split, and a kitchen the benchmark does not list."""
+    from tests.helpers import run_stage
+
+    r = run_stage("bench_eval", tmp_path, "+bench_split=other")
+    assert r.returncode != 0 and "split 'other' is not scored" in r.stderr
+    r = run_stage("bench_kitchen", tmp_path, "+bench_split=hand", "+bench_kitchen=3", "bench.hand_kitchens=[0,1]")
+    assert r.returncode != 0 and "kitchen 3 of the hand split is not in the benchmark ([0, 1])" in r.stderr
+    assert not (tmp_path / "bench").exists()
