@@ -36,9 +36,9 @@ def main(cfg: DictConfig) -> None:
     if cfg.get("bench_split") is None or cfg.get("bench_kitchen") is None:
         raise ConfigError("bench_kitchen: pass +bench_split=<train|test|hand> +bench_kitchen=<k>")
     split, k = str(cfg.bench_split), int(cfg.bench_kitchen)
-    if k not in bc.split_kitchens(split):
-        raise ConfigError(f"bench_kitchen: kitchen {k} of the {split} split is not in the benchmark "
-                          f"({bc.split_kitchens(split)})")
+    listed = bc.split_kitchens(split)
+    if k not in listed:
+        raise ConfigError(f"bench_kitchen: kitchen {k} of the {split} split is not in the benchmark ({listed})")
     choices = HydraConfig.get().runtime.choices
     want = {"scene": bc.base_scene, "capture/detections": bc.detections, "capture/depth": bc.depth, "sdf": bc.sdf}
     wrong = {g: choices.get(g) for g, v in want.items() if choices.get(g) != v}

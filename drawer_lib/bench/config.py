@@ -34,6 +34,12 @@ class FitConfig:
             raise ConfigError(f"bench.fit.select = {self.select!r} must be one_se or best")
 
 
+def _check_indices(key: str, ks: list) -> None:
+    """``bench.<key>`` must be a non-empty list of distinct kitchen indices >= 0."""
+    if not ks or len(set(ks)) != len(ks) or any(isinstance(k, bool) or not isinstance(k, int) or k < 0 for k in ks):
+        raise ConfigError(f"bench.{key} = {ks}: need a list of distinct kitchen indices >= 0")
+
+
 @dataclass(frozen=True)
 class BenchConfig:
     """The benchmark: kitchen ``k`` of every split in ``splits`` for each ``k`` in ``kitchens``,
@@ -62,22 +68,17 @@ class BenchConfig:
     fit: FitConfig = field(default_factory=FitConfig)
 
     def __post_init__(self):
-        if not self.kitchens or any(isinstance(k, bool) or not isinstance(k, int) or k < 0 for k in self.kitchens):
-            raise ConfigError(f"bench.kitchens = {self.kitchens}: need a list of kitchen indices >= 0")
-        if len(set(self.kitchens)) != len(self.kitchens):
-            raise ConfigError(f"bench.kitchens = {self.kitchens} lists a kitchen twice")
+        _check_indices("kitchens", self.kitchens)
         if "train" not in self.splits or any(s not in SPLITS for s in self.splits):
             raise ConfigError(f"bench.splits = {self.splits}: splits of {SPLITS}, the train split among them "
                               "(the decision weights are fitted on it)")
         why = next((w for w in (missing_kitchens(sp, self.kitchens) for sp in self.splits) if w), None)
         if why:
             raise ConfigError(f"bench.splits: {why}; bench.kitchens = {self.kitchens}")
-        hk = self.hand_kitchens
-        if not hk or len(set(hk)) != len(hk) or any(isinstance(k, bool) or not isinstance(k, int) or k < 0 for k in hk):
-            raise ConfigError(f"bench.hand_kitchens = {hk}: need a list of distinct kitchen indices")
-        why = missing_kitchens("hand", hk)
+        _check_indices("hand_kitchens", self.hand_kitchens)
+        why = missing_kitchens("hand", self.hand_kitchens)
         if why:
-            raise ConfigError(f"bench.hand_kitchens = {hk}: {why}")
+            raise ConfigError(f"bench.hand_kitchens = {self.hand_kitchens}: {why}")
 
     def split_kitchens(self, split: str) -> list[int]:
         """The kitchens the benchmark scores of ``split``: ``hand_kitchens`` for the hand split
