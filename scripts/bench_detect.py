@@ -20,12 +20,15 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
     python scripts/bench_detect.py --split train --tag mw1 --set decompose.missing_weight=1   # a variant, same detections
     python scripts/bench_detect.py --split hand --kitchens 0 1 2 3 --detect capture builtin   # kitchens written by hand
+    python scripts/bench_detect.py --split train --kitchens 16 17 --layout 'module_widths=[0.3, 0.35]' --out DIR
+        # a stress variant: the same kitchens with narrower fronts (built apart, in DIR)
 
 Writes ``<out>/<split>/summary.json``; each kitchen's folders stay under ``<out>`` (a rerun
 scores again without rebuilding the capture and geometry). Simulated input: rendered RGB-D.
 """
 
 import argparse
+import dataclasses
 import json
 import os
 import time
@@ -33,6 +36,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import yaml
 from omegaconf import OmegaConf
 
 import drawer_lib  # noqa: F401  (before torch: the OpenMP policy)
@@ -65,6 +69,7 @@ from drawer_lib.synth.splits import HAND, SPLITS, missing_kitchens
 
 ROOT = Path(__file__).resolve().parent.parent
 FITTED_DIR = "articulate_fitted"
+LAYOUT_FILE = "layout.json"  # beside a kitchen built with --layout: its keys
 OVERRIDES = ["scene=kitchen_small", "capture/detections=persistent", "capture/depth=sensor", "sdf=tsdf"]
 
 
@@ -74,20 +79,26 @@ def variant(model: str, tag: str) -> str:
 
 
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
-            decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "") -> dict:
+            decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "",
+            layout: dict | None = None) -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
     weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior.
     ``overrides``: Hydra overrides of decompose and articulate; ``tag``: their outputs go to
-    ``by_detector/<model>-<tag>/``, reading the detections of ``by_detector/<model>/``."""
+    ``by_detector/<model>-<tag>/``, reading the detections of ``by_detector/<model>/``.
+    ``layout``: keys of the kitchen's layout block over the split's (a stress variant of the
+    split: other widths, handle styles); recorded in ``layout.json`` beside the kitchen, and a
+    kitchen built with other keys is not reused."""
     import torch
 
     torch.set_num_threads(1)
     cfg = compose_config(ROOT / "conf", OVERRIDES + list(overrides))
     base = OmegaConf.to_container(cfg.scene, resolve=True)
-    scene = kitchen_scene(base, split, k)
+    scene = kitchen_scene(base, split, k, layout=layout)
     sp = ScenePaths(out / split, f"kitchen_{k}")
     seed = 1000 * SPLITS.index(split) + k
-    if not (sp.metrics("mesh")).is_file():
+    if not sp.metrics("mesh").is_file() and layout:
+        sp.root.mkdir(parents=True, exist_ok=True)
+        (sp.root / LAYOUT_FILE).write_text(json.dumps(layout))
         with stage_run("capture", sp.capture, seed) as r:
             build_capture(f"{split}_{k}", scene, to_typed(CaptureConfig, cfg.capture, "capture"), r.dir, r.rng, ROOT)
         cap = load_capture(sp.capture, check_files=False)
@@ -122,6 +133,31 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
                       "parts_2d_precision": dm.get("parts_2d_precision"), "parts_2d_recall": dm.get("parts_2d_recall"),
                       "source": read_json(v.metrics("decompose"))["source"], "s": round(time.perf_counter() - t0, 1)}
     return row
+
+
+def parse_layout(pairs: list[str]) -> dict:
+    """``KEY=VALUE`` pairs (YAML values) as layout keys, checked against the layout block's fields."""
+    from drawer_lib.synth.config import LayoutConfig
+
+    fields = {f.name for f in dataclasses.fields(LayoutConfig)}
+    out = {}
+    for kv in pairs:
+        key, sep, val = kv.partition("=")
+        if not sep or key not in fields:
+            raise SystemExit(f"error: --layout {kv!r}: not KEY=VALUE with KEY a layout field ({', '.join(sorted(fields))})")
+        out[key] = yaml.safe_load(val)
+    return out
+
+
+def check_built(out: Path, split: str, kitchens: list[int], layout: dict) -> None:
+    """Refuse kitchens under ``out`` that were built with other ``--layout`` keys than ``layout``."""
+    for k in kitchens:
+        sp = ScenePaths(out / split, f"kitchen_{k}")
+        if sp.metrics("mesh").is_file():
+            marker = sp.root / LAYOUT_FILE
+            built = json.loads(marker.read_text()) if marker.is_file() else {}
+            if built != layout:
+                raise SystemExit(f"error: {sp.root}: built with layout {built}, not {layout}; use another --out")
 
 
 def fit_per_model(models: list[str], out: Path, kitchens: list[int], overrides: tuple[str, ...] = (), tag: str = ""
@@ -184,9 +220,13 @@ def main() -> None:
                     help="train kitchens (already run with --split train) the fitted weights learn from")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                     help="Hydra overrides of decompose and articulate (e.g. decompose.missing_weight=1)")
+    ap.add_argument("--layout", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="keys of each kitchen's layout block over its split's, values in YAML (a stress "
+                    "variant of the split, e.g. 'module_widths=[0.3, 0.35]'); needs an --out of its own")
     ap.add_argument("--tag", default="", help="write decompose and articulate to by_detector/<model>-TAG/ "
                     "(the detections of by_detector/<model>/ are read; the summary is summary-TAG.json)")
     a = ap.parse_args()
+    layout = parse_layout(a.layout)
     if a.kitchens is None:
         a.kitchens = list(range(len(HAND) if a.split == "hand" else 20))
     why = missing_kitchens(a.split, a.kitchens)
@@ -198,12 +238,14 @@ def main() -> None:
         raise SystemExit(f"error: --set {' '.join(a.set)}: only decompose.* and articulate.* keys vary here")
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
+    check_built(a.out, a.split, a.kitchens, layout)
     if "builtin" in a.detect and not a.weights.is_file():
         raise SystemExit(f"error: {a.weights}: the built-in detector's weights are missing (run `dvc repro detector`)")
     fitted, fit_rec = (fit_per_model(a.detect, a.out, a.fit_kitchens, tuple(a.set), a.tag) if a.decisions == "fitted"
                        else (None, None))
     with ProcessPoolExecutor(a.jobs) as ex:
-        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve(), fitted, tuple(a.set), a.tag)
+        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve(), fitted, tuple(a.set), a.tag,
+                           layout)
                 for k in a.kitchens]
         rows = []
         for f in futs:
@@ -212,7 +254,7 @@ def main() -> None:
             print(f"{a.split} {row['kitchen']:2d}: " + "   ".join(
                 f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
                 f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
-    summ = {"split": a.split, "kitchens": a.kitchens, "weights": a.decisions, "fit": fit_rec, "set": a.set,
+    summ = {"split": a.split, "kitchens": a.kitchens, "layout": layout, "weights": a.decisions, "fit": fit_rec, "set": a.set,
             "by_model": summarise(rows, a.detect), "rows": rows}
     (a.out / a.split).mkdir(parents=True, exist_ok=True)
     name = "summary" + ("" if a.decisions == "prior" else "-fitted") + (f"-{a.tag}" if a.tag else "") + ".json"

@@ -282,7 +282,9 @@ class JointsConfig:
     with a near-parallel normal (cosine >= ``sliding_normal_cos``) a ``sliding_step`` [min,
     max] behind (measured on the points within ``sliding_band`` of their shared edge), of the
     same height (within ``sliding_same_height`` of it, centres within ``sliding_aligned`` of
-    it); each travels the partner's width minus the overlap and ``sliding_clearance``, at least
+    it), neither pulled more than ``sliding_pull_meets`` of its width off centre toward the
+    other (a double door; null: not checked); each travels the partner's width minus the
+    overlap and ``sliding_clearance``, at least
     ``sliding_min_travel``. A sliding door without a partner travels ``sliding_single_travel``
     x its width toward the side where the mesh lies deeper behind its plane (an open shelf or
     a panel it slides over, probed over ``sliding_probe`` x its width beyond each side edge),
@@ -306,6 +308,7 @@ class JointsConfig:
     sliding_min_travel: float = 0.05
     sliding_single_travel: float = 0.9
     sliding_probe: float = 0.5
+    sliding_pull_meets: float | None = 0.15
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:

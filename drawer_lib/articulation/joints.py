@@ -26,11 +26,23 @@ def hinge_axis(front: Front, hinge: str) -> Axis:
     return Axis(tuple((c + edge).tolist()), tuple((d / np.linalg.norm(d)).tolist()))
 
 
+def _pull_toward(handle: Handle | None, toward_u: float, off_centre: float) -> bool:
+    """Whether ``handle`` sits more than ``off_centre`` (a fraction of the front's width) from
+    the front's centre on the side of ``toward_u`` (a signed offset along the front's u)."""
+    if handle is None or toward_u == 0.0:
+        return False
+    return bool((handle.a_u - 0.5) * np.sign(toward_u) > off_centre)
+
+
 def sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: JointsConfig,
                      points: list[np.ndarray]) -> dict[int, tuple[int, float]]:
     """Sliding doors: a front standing out of the run by a step of ``sliding_step`` (the outer
     panel on its own track; measured locally, :func:`local_step`) and the adjacent
     stepped-back front of the same height on the side away from its handle (the inner panel).
+    Two fronts either of whose pulls sits more than ``sliding_pull_meets`` of its width off
+    centre toward the other are not a pair: a double door's leaves are pulled where they meet,
+    a sliding pair's panels at their outer edges (a pull there would stop the outer panel
+    against the inner one's).
     ``points``: each front's segment points. Returns {front: (partner, overlap in u (m))} for
     both panels of each pair; the outer one is paired first and only once."""
     out: dict[int, tuple[int, float]] = {}
@@ -51,6 +63,10 @@ def sliding_partners(fronts: list[Front], handles: list[Handle | None], cfg: Joi
             same_h = (abs(fa.size[1] - fb.size[1]) < cfg.sliding_same_height * max(fa.size[1], fb.size[1])
                       and abs(dc @ fa.v) < cfg.sliding_aligned * fa.size[1])
             if same_h:
+                if cfg.sliding_pull_meets is not None and (
+                        _pull_toward(handles[a], float(du), cfg.sliding_pull_meets)
+                        or _pull_toward(handles[b], float(-(dc @ np.asarray(fb.u))), cfg.sliding_pull_meets)):
+                    continue  # a double door's leaves: pulled where they meet, not at their outer edges
                 h = handles[a]
                 away = 0.0 if h is None else np.sign(0.5 - h.a_u)  # the side away from the handle
                 cands.append((away != 0 and np.sign(du) != away, -overlap_u, a, b, overlap_u))

@@ -125,6 +125,12 @@ def knobless_drawer_stack(cfg, w) -> bool:
     return all(_family(p, "drawer") for p in parts)
 
 
+def push_to_open_door(cfg, w) -> bool:
+    """A lone wall door without a handle (push-to-open) is a revolute part, not a fixed panel."""
+    (p,), _, _ = Scene().static([0.0, -0.35, 1.43], [0.45, 0.0, 1.45]).front(0.0, 0.45, 1.45, 2.15, -0.35).run(cfg, w)
+    return p is not None and p.kind == "revolute"
+
+
 def microwave_door(yaw: float) -> Callable:
     def case(cfg, w) -> bool:
         s = Scene().static([0.0, -0.5, 0.9], [0.5, -0.14, 1.19]).static([-0.3, -0.62, 0.86], [1.0, 0.0, 0.9])
@@ -163,6 +169,7 @@ class Case:
 
 CASES = (Case("full_height_door", full_height_door), Case("oven_door_top_bar", oven_door_top_bar),
          Case("sliding_without_partner", sliding_without_partner), Case("knobless_drawer_stack", knobless_drawer_stack),
+         Case("push_to_open_door", push_to_open_door),
          *(Case(f"microwave_door_yaw_{y:g}", microwave_door(y)) for y in (0.0, 30.0, -40.0)),
          Case("mirrored_wall_doors", mirrored_wall_doors),
          Case("wall_door_bottom_corner_bar", wall_door_bottom_corner_bar))

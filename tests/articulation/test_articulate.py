@@ -2,6 +2,8 @@
 y = -0.6, facing -y) in front of a wall, with a handle box where a drawer, a left-hinged door or
 a bottom-hinged flap carries it. Type, axis and limits must come out within stated tolerances."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -113,8 +115,16 @@ def test_handle_rule_top_handle_is_a_drawer_unless_the_labels_say_door():
     assert p.extra["family"] == "drawer"  # labels are hints only, and can be switched off
 
 
-def test_no_handle_is_a_fixed_panel_and_degenerate_segments_are_reported():
-    parts, rep = run(None)
+def test_a_lone_front_without_a_handle_is_a_door_and_degenerate_segments_are_reported():
+    """A lone front without a handle that can swing is a push-to-open door; which edge it
+    hinges on is a guess (both sides score alike), so the decision is flagged. Without the
+    prior's ``bare_lone`` weight it is a fixed panel."""
+    (p,), rep = run(None)
+    assert p.kind == "revolute" and rep[0]["family"] == "door" and rep[0]["low_margin"]
+    assert rep[0]["features"]["bare_lone"] == 1.0
+    door = {k: v for k, v in DRAWER_TYPES.prior["door"].items() if k != "bare_lone"}
+    types = dataclasses.replace(DRAWER_TYPES, prior={**DRAWER_TYPES.prior, "door": door})
+    parts, rep = run(None, cfg=ArticulateConfig(types=types))
     assert parts == [] and rep[0]["family"] == "fixed"
     mesh, outer = scene("center")
     one = segment(mesh, outer[:1])

@@ -25,7 +25,8 @@ ROOT = Path(__file__).resolve().parents[2]
 CFG = to_typed(ArticulateConfig, yaml.safe_load((ROOT / "conf/articulate/default.yaml").read_text()), "articulate")
 PRIOR = CFG.types.prior
 PRIOR_PASSES = {"full_height_door", "microwave_door_yaw_0", "microwave_door_yaw_30", "microwave_door_yaw_-40",
-                "mirrored_wall_doors", "oven_door_top_bar", "knobless_drawer_stack", "sliding_without_partner"}
+                "mirrored_wall_doors", "oven_door_top_bar", "knobless_drawer_stack", "sliding_without_partner",
+                "push_to_open_door"}
 
 
 def only(hypothesis: str) -> dict[str, dict[str, float]]:
@@ -81,7 +82,8 @@ def test_the_highest_score_wins(hyp):
 
 def test_tall_and_bare_stack_features():
     """``tall`` ramps from 0 at drawer_max_height to 2 at 20 cm above it; ``bare_stack`` is
-    ``stacked`` for a front without a handle and 0 with one."""
+    ``stacked`` for a front without a handle and 0 with one; ``bare_lone`` is 1 for a front
+    with neither a handle nor a stacked neighbour."""
 
     def ev(h, stacked, handle):
         return Evidence(handle=Handle(0.5, 0.9, "horizontal", 30, "masks") if handle else None, size=(0.6, h),
@@ -93,6 +95,8 @@ def test_tall_and_bare_stack_features():
     assert features(ev(0.6, 0, True), [], [], True, drawer_max_height=0.7)["tall"] == 0.0
     assert [features(ev(0.2, st, False), [], [], True)["bare_stack"] for st in (0, 1, 2, 5)] == [0.0, 0.5, 1.0, 1.0]
     assert features(ev(0.2, 2, True), [], [], True)["bare_stack"] == 0.0
+    assert [features(ev(0.2, st, False), [], [], True)["bare_lone"] for st in (0, 1, 2)] == [1.0, 0.0, 0.0]
+    assert features(ev(0.2, 0, True), [], [], True)["bare_lone"] == 0.0
     with pytest.raises(ConfigError, match="drawer_max_height = 0.0"):
         TypesConfig(drawer_max_height=0.0)
 
@@ -156,8 +160,9 @@ def test_weights_are_checked():
 
 def test_the_hard_cases_with_the_prior():
     """The prior gets the cases a handle decides, an oven's top bar (too tall a front for a
-    drawer), knobless drawers (a stack of handle-less fronts) and a lone sliding door (its
-    track); a wall door's bar at its bottom corner (a flap's place) it gets wrong."""
+    drawer), knobless drawers (a stack of handle-less fronts), a lone sliding door (its
+    track) and a lone push-to-open door; a wall door's bar at its bottom corner (a flap's
+    place) it gets wrong."""
     got = {r["name"]: r["passed"] for r in run_cases(CFG, PRIOR)}
     assert set(got) == {c.name for c in CASES}
     assert {n for n, ok in got.items() if ok} == PRIOR_PASSES

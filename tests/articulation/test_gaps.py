@@ -218,6 +218,38 @@ def test_the_pieces_of_a_merged_sliding_pair_are_partners():
     assert sliding_partners(pieces, [None, None], cfg, [pts, pts]) == {}
 
 
+def test_leaves_pulled_where_they_meet_are_not_a_sliding_pair():
+    """Two fronts a step apart are a sliding pair when pulled at their outer edges (or not at
+    all); pulled where they meet, they are a double door's leaves (a recessed one, a door of
+    another depth) and stay unpaired. Either leaf's pull alone decides; centred pulls say
+    nothing."""
+    from drawer_lib.articulation.config import JointsConfig
+    from drawer_lib.articulation.infer import piece_points
+    from drawer_lib.articulation.joints import sliding_partners
+    from drawer_lib.articulation.vocab import Handle
+
+    rng = np.random.default_rng(4)
+    pts = _panel_points(rng, [(-0.5, 0.01, 0.022), (0.01, 0.5, 0.0)], n_per=1500)
+    pieces = _cut(pts)
+    own = [piece_points(pts, f, True) for f in pieces]
+    left_of = [float(np.asarray(f.center) @ np.asarray(f.u)) for f in pieces]
+    assert left_of[0] < left_of[1]  # piece 0 on the left along u, piece 1 on the right
+
+    def pull(a_u):
+        return Handle(a_u, 0.5, "vertical", 50, "images")
+
+    cfg = JointsConfig()
+    outer = [pull(0.1), pull(0.9)]           # each at its outer edge: sliding panels
+    meeting = [pull(0.9), pull(0.1)]         # each at the edge it shares: a double door
+    assert set(sliding_partners(pieces, outer, cfg, own)) == {0, 1}
+    assert set(sliding_partners(pieces, [pull(0.5), pull(0.5)], cfg, own)) == {0, 1}
+    assert sliding_partners(pieces, meeting, cfg, own) == {}
+    assert sliding_partners(pieces, [pull(0.9), None], cfg, own) == {}   # the left leaf's pull alone
+    assert sliding_partners(pieces, [None, pull(0.1)], cfg, own) == {}   # the right leaf's alone
+    off = JointsConfig(sliding_pull_meets=None)
+    assert set(sliding_partners(pieces, meeting, off, own)) == {0, 1}
+
+
 # --- outline steps: an L-shaped segment is two fronts --------------------------------------------
 
 def _rect_points(rng, u0, u1, v0, v1, off=0.0, n_per_m2=40000):

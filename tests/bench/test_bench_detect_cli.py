@@ -14,9 +14,25 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_detect.py"
     (["--set", "decompose.missing_weight=0"], "--set needs a --tag"),
     (["--tag", "t", "--set", "sdf.method=tsdf"], "only decompose.* and articulate.* keys vary here"),
     (["--split", "hand", "--kitchens", "2", "8"], "the hand split has kitchens 0 .. 7"),
+    (["--layout", "module_width=[0.3]"], "not KEY=VALUE with KEY a layout field"),
+    (["--layout", "module_widths"], "not KEY=VALUE with KEY a layout field"),
 ])
 def test_bad_variants_are_refused(tmp_path, args, message):
     r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path), *args], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode != 0 and message in r.stderr
     assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_a_kitchen_built_with_other_layout_keys_is_not_reused(tmp_path):
+    """A stress variant (``--layout``) builds other kitchens: over a folder holding the split's
+    own, it stops before any work, naming the kitchen; the kitchen's files stay as they were."""
+    k = tmp_path / "train" / "kitchen_16"
+    (k / "mesh").mkdir(parents=True)
+    (k / "mesh" / "metrics.json").write_text("{}")
+    r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path), "--split", "train", "--kitchens", "16",
+                        "--detect", "none", "--layout", "module_widths=[0.3, 0.35]"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode != 0
+    assert f"{k}: built with layout {{}}, not {{'module_widths': [0.3, 0.35]}}" in r.stderr
+    assert sorted(p.name for p in k.rglob("*")) == ["mesh", "metrics.json"]
