@@ -28,7 +28,6 @@ scores again without rebuilding the capture and geometry). Simulated input: rend
 """
 
 import argparse
-import dataclasses
 import json
 import os
 import time
@@ -65,6 +64,7 @@ from drawer_lib.runner import stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
+from drawer_lib.synth.config import LAYOUT_KEYS
 from drawer_lib.synth.splits import HAND, SPLITS, missing_kitchens
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -137,14 +137,11 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
 
 def parse_layout(pairs: list[str]) -> dict:
     """``KEY=VALUE`` pairs (YAML values) as layout keys, checked against the layout block's fields."""
-    from drawer_lib.synth.config import LayoutConfig
-
-    fields = {f.name for f in dataclasses.fields(LayoutConfig)}
     out = {}
     for kv in pairs:
         key, sep, val = kv.partition("=")
-        if not sep or key not in fields:
-            raise SystemExit(f"error: --layout {kv!r}: not KEY=VALUE with KEY a layout field ({', '.join(sorted(fields))})")
+        if not sep or key not in LAYOUT_KEYS:
+            raise SystemExit(f"error: --layout {kv!r}: not KEY=VALUE with KEY a layout field ({', '.join(sorted(LAYOUT_KEYS))})")
         out[key] = yaml.safe_load(val)
     return out
 

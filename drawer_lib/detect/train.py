@@ -2,7 +2,6 @@
 Adam on random crops with class-balanced cross-entropy, then the 2D instance precision and recall
 of its fronts on the test split's kitchens, which it never saw."""
 
-import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,7 +18,7 @@ from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.metrics.detections import match_fronts
 from drawer_lib.paths import bench_name
 from drawer_lib.runner import Curve, StageRun
-from drawer_lib.synth.config import LayoutConfig, RenderConfig
+from drawer_lib.synth.config import LAYOUT_KEYS, RenderConfig
 
 
 @dataclass
@@ -154,7 +153,7 @@ def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Rende
     """Render the train split's kitchens ``cfg.kitchens``, fit the built-in detector, write
     ``weights.pt`` and ``curve.csv`` (loss against time), and score it on the train views and
     on the test split's kitchens ``cfg.eval_kitchens``."""
-    unknown = set(cfg.layout) - {f.name for f in dataclasses.fields(LayoutConfig)}
+    unknown = set(cfg.layout) - LAYOUT_KEYS
     if unknown:
         raise ConfigError(f"detector.layout: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
 

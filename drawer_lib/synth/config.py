@@ -5,7 +5,7 @@ defaults here exist for tests and library use. Lengths in metres, angles in degr
 name says ``_deg``.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from drawer_lib.errors import ConfigError
 
@@ -145,6 +145,9 @@ class LayoutConfig:
                "layout.wall_bottom leaves no room above the counter")
         _check(self.carcass_height + 0.5 < self.tall_height < 2.5 - self.plinth_height,
                f"layout.tall_height = {self.tall_height} must exceed the base cabinets and fit under the ceiling")
+
+
+LAYOUT_KEYS = frozenset(f.name for f in fields(LayoutConfig))  # the keys a layout block (or an override of one) may set
 
 
 @dataclass(frozen=True)
