@@ -364,7 +364,14 @@ class FalseFrontsConfig:
     surface runs on flush beyond ``min_flush_sides`` of its sides (``flush_frac`` of the mesh
     points ``ring`` = [from, to] m beyond the side within ``flush_tol`` of its plane, with at
     least ``min_points`` there; :func:`~drawer_lib.articulation.probes.flush_sides`), and no
-    handle detection or protrusion says otherwise (a handle read off colours alone does not)."""
+    handle detection or protrusion says otherwise (a handle read off colours alone does not).
+
+    A front short of that, whose surface runs on flush beyond both its left and right sides
+    (``flanked_flush`` of the ring's points) while a gap line shows along fewer than
+    ``flanked_min_lines`` of its sides (each along ``flanked_line`` of its length), is
+    *flanked*: kept and typed, but without a handle it is not taken for a lone push-to-open
+    door (:func:`~drawer_lib.articulation.infer.flanked`; the ``bare_lone`` feature of
+    :mod:`~drawer_lib.articulation.scoring`). ``flanked_min_lines: 0`` turns this off."""
 
     enabled: bool = True
     line_slack: float = 0.012
@@ -374,6 +381,9 @@ class FalseFrontsConfig:
     flush_frac: float = 0.7
     min_points: int = 20
     min_flush_sides: int = 4
+    flanked_flush: float = 0.4
+    flanked_line: float = 0.3
+    flanked_min_lines: int = 2
 
     def __post_init__(self):
         if len(self.ring) != 2 or not 0 <= self.ring[0] < self.ring[1]:
@@ -382,6 +392,9 @@ class FalseFrontsConfig:
             raise ConfigError("articulate.false_fronts: line_coverage and flush_frac in [0, 1], min_flush_sides in 0..4")
         if self.line_slack < 0 or self.flush_tol <= 0 or self.min_points < 1:
             raise ConfigError("articulate.false_fronts: line_slack >= 0, flush_tol > 0, min_points >= 1")
+        if not (0 <= self.flanked_flush <= 1 and 0 <= self.flanked_line <= 1 and 0 <= self.flanked_min_lines <= 4):
+            raise ConfigError(f"articulate.false_fronts: flanked_flush = {self.flanked_flush} and flanked_line = "
+                              f"{self.flanked_line} must be in [0, 1], flanked_min_lines = {self.flanked_min_lines} in 0..4")
 
 
 @dataclass(frozen=True)

@@ -186,6 +186,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
         terms = {}
+        walled = False
         if rfs is not None and ff.enabled and rfs[k].rgb is not None:
             border = {"lines": border_lines(fr, rfs[k], cfg.split, ff.line_slack),
                       "flush": flush_sides(fr, mesh_pts, tuple(ff.ring), ff.flush_tol, ff.min_points)}
@@ -196,6 +197,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                 report.append({"segment": s.id, "family": "none", "reason": why, "front": fr.to_json(), **info,
                                **terms})
                 continue
+            walled = flanked(border, ff)
+            terms["flanked"] = walled
         if h is None and s.support < cfg.types.min_support:
             dec = Decision("fixed", reason=f"no handle, matched in {s.support} < {cfg.types.min_support} views")
         elif cfg.types.rule == "score":
@@ -206,7 +209,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             ev = Evidence(handle=h, size=fr.size, z_mid=float(fr.center[2]) - floor_z, stacked=neighbours[k][0],
                           beside_left=neighbours[k][1], beside_right=neighbours[k][2], partner=k in partner,
                           rail=rail_extent(fr, mesh_pts, pt_normal), carcass=carcass, labels=s.labels,
-                          support=s.support)
+                          support=s.support, flanked=walled)
             dec, score_terms = decide_by_score(ev, cfg.types, weights, blocked)
             terms |= score_terms
         elif k in partner:
@@ -262,6 +265,24 @@ def world_fixed(border: dict, handle: Handle | None, cfg: FalseFrontsConfig,
     return (f"a false front fixed in the world: no gap line round it (at most {max(lines):.0%} of a side), "
             f"the surface runs on flush beyond {len(flush)} sides ({', '.join(flush)})"
             + ("" if handle is None else ", its handle only read off colours"))
+
+
+def flanked(border: dict, cfg: FalseFrontsConfig) -> bool:
+    """Whether a front is flanked (:class:`~drawer_lib.articulation.config.FalseFrontsConfig`):
+    the surface runs on flush beyond both its left and right sides (``flanked_flush`` of the
+    points there) while a gap line runs along ``flanked_line`` of fewer than
+    ``flanked_min_lines`` of its sides. Such a front may be a door in a run whose gaps the
+    images do not resolve, or a patch of wall between the counter and the wall cabinets that a
+    detector took for a front; without a handle nothing says which, so it is not a lone
+    push-to-open door. ``border`` as for :func:`world_fixed`; an unseen side (None) is neither
+    flush nor a line."""
+    if cfg.flanked_min_lines == 0:
+        return False
+    fl = border["flush"]
+    if not all(fl.get(side) is not None and fl[side] >= cfg.flanked_flush for side in ("left", "right")):
+        return False
+    lines = sum(1 for x in border["lines"].values() if x is not None and x >= cfg.flanked_line)
+    return lines < cfg.flanked_min_lines
 
 
 def front_neighbours(fronts: list[Front], max_gap: float, plane_tol: float) -> list[tuple[int, bool, bool]]:

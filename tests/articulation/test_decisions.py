@@ -83,12 +83,12 @@ def test_the_highest_score_wins(hyp):
 def test_tall_and_bare_stack_features():
     """``tall`` ramps from 0 at drawer_max_height to 2 at 20 cm above it; ``bare_stack`` is
     ``stacked`` for a front without a handle and 0 with one; ``bare_lone`` is 1 for a front
-    with neither a handle nor a stacked neighbour."""
+    with neither a handle nor a stacked neighbour, unless it is flanked (a patch of wall)."""
 
-    def ev(h, stacked, handle):
+    def ev(h, stacked, handle, flanked=False):
         return Evidence(handle=Handle(0.5, 0.9, "horizontal", 30, "masks") if handle else None, size=(0.6, h),
                         z_mid=0.5, stacked=stacked, beside_left=False, beside_right=False, partner=False, rail=0.0,
-                        carcass=0.5, labels={}, support=30)
+                        carcass=0.5, labels={}, support=30, flanked=flanked)
 
     tall = [features(ev(h, 0, True), [], [], True, drawer_max_height=0.45)["tall"] for h in (0.2, 0.45, 0.5, 0.6, 0.65, 2.0)]
     assert tall == pytest.approx([0.0, 0.0, 0.5, 1.5, 2.0, 2.0])
@@ -97,6 +97,7 @@ def test_tall_and_bare_stack_features():
     assert features(ev(0.2, 2, True), [], [], True)["bare_stack"] == 0.0
     assert [features(ev(0.2, st, False), [], [], True)["bare_lone"] for st in (0, 1, 2)] == [1.0, 0.0, 0.0]
     assert features(ev(0.2, 0, True), [], [], True)["bare_lone"] == 0.0
+    assert features(ev(0.2, 0, False, flanked=True), [], [], True)["bare_lone"] == 0.0
     with pytest.raises(ConfigError, match="drawer_max_height = 0.0"):
         TypesConfig(drawer_max_height=0.0)
 

@@ -7,7 +7,7 @@ import pytest
 
 from drawer_lib.articulation.config import FalseFrontsConfig, SplitConfig
 from drawer_lib.articulation.gaps import border_lines
-from drawer_lib.articulation.infer import world_fixed
+from drawer_lib.articulation.infer import flanked, world_fixed
 from drawer_lib.articulation.probes import flush_sides
 from drawer_lib.articulation.rectify import RectifiedFront, front_grid
 from drawer_lib.articulation.vocab import Handle
@@ -82,8 +82,29 @@ def test_a_patch_of_wall_is_dropped_and_a_front_kept():
     assert world_fixed({"lines": none, "flush": flush}, None, cfg, (0, False, True)) is None
 
 
+def test_a_front_flush_at_both_sides_without_gaps_is_flanked():
+    """Flanked: flush beyond left and right, a gap line along fewer than two sides. A gap on
+    two sides, a step or an unseen side at either side, or the rule turned off: not flanked."""
+    cfg = FalseFrontsConfig()
+    sides = ("left", "right", "bottom", "top")
+    wall = {"left": 0.9, "right": 0.5, "bottom": None, "top": 1.0}
+    one_line = dict.fromkeys(sides, 0.0) | {"bottom": 0.8}
+    assert flanked({"lines": one_line, "flush": wall}, cfg)
+    assert flanked({"lines": dict.fromkeys(sides), "flush": wall}, cfg)  # no side seen: no gap shown
+    assert not flanked({"lines": one_line | {"top": 0.35}, "flush": wall}, cfg)
+    assert flanked({"lines": one_line | {"top": 0.25}, "flush": wall}, cfg)  # under flanked_line
+    assert not flanked({"lines": one_line, "flush": wall | {"right": 0.3}}, cfg)  # a step at one side
+    assert not flanked({"lines": one_line, "flush": wall | {"left": None}}, cfg)  # nothing seen beyond it
+    assert not flanked({"lines": one_line, "flush": wall}, FalseFrontsConfig(flanked_min_lines=0))
+    assert not flanked({"lines": one_line, "flush": wall}, FalseFrontsConfig(flanked_min_lines=1))
+
+
 def test_false_fronts_config_is_checked():
     with pytest.raises(ConfigError, match="ring"):
         FalseFrontsConfig(ring=[0.1, 0.05])
     with pytest.raises(ConfigError):
         FalseFrontsConfig(min_flush_sides=5)
+    with pytest.raises(ConfigError, match="flanked_line = 1.5"):
+        FalseFrontsConfig(flanked_line=1.5)
+    with pytest.raises(ConfigError, match="flanked_min_lines = 5"):
+        FalseFrontsConfig(flanked_min_lines=5)
