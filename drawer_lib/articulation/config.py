@@ -223,7 +223,9 @@ class TypesConfig:
     label votes are evidence (false: ignored). Either rule: a front without a handle that
     detections matched in fewer than ``min_support`` views is a fixed panel (a front seen in many
     views, in a carcass, is rarely fixed even when its handle is too small to find); a front with
-    a handle or enough support is typed. A score decision whose margin over the runner-up is
+    a handle or enough support is typed. Either rule: a front without a handle narrower than
+    ``filler_width`` (m) is a fixed panel too: a filler strip, or the sliver a cut leaves where a
+    mask spilt onto a neighbour (real narrow pull-outs carry a handle); null turns this off. A score decision whose margin over the runner-up is
     below ``low_margin`` (log-odds) is marked ``low_margin`` in ``decisions.json`` and
     ``parts.json``, listed by the report and marked in the viewer. ``sliding_needs_track``: the
     score rule types a front sliding only when it has a partner on another track or a track
@@ -240,6 +242,7 @@ class TypesConfig:
     weights: str = "fitted"
     prior: dict[str, dict[str, float]] = field(default_factory=prior_weights)
     min_support: int = 5
+    filler_width: float | None = 0.25
     low_margin: float = 1.0
     sliding_needs_track: bool = True
     drawer_max_height: float = 0.45
@@ -266,6 +269,8 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.min_support = {self.min_support} must be >= 0")
         if not self.low_margin >= 0:
             raise ConfigError(f"articulate.types.low_margin = {self.low_margin} must be >= 0")
+        if self.filler_width is not None and not 0 <= self.filler_width < 10:
+            raise ConfigError(f"articulate.types.filler_width = {self.filler_width} must be in [0, 10) m or null")
         if not 0 < self.drawer_max_height < 10:
             raise ConfigError(f"articulate.types.drawer_max_height = {self.drawer_max_height} must be in (0, 10) m")
         check_weights(self.prior, "articulate.types.prior")

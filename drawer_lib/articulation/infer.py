@@ -201,6 +201,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             terms["flanked"] = walled
         if h is None and s.support < cfg.types.min_support:
             dec = Decision("fixed", reason=f"no handle, matched in {s.support} < {cfg.types.min_support} views")
+        elif h is None and cfg.types.filler_width is not None and fr.size[0] < cfg.types.filler_width:
+            dec = Decision("fixed", reason=f"no handle and {fr.size[0]:.2f} m wide < {cfg.types.filler_width} m: "
+                           "a filler or a sliver")
         elif cfg.types.rule == "score":
             blocked = None
             if obstacles is not None:

@@ -115,6 +115,21 @@ def test_handle_rule_top_handle_is_a_drawer_unless_the_labels_say_door():
     assert p.extra["family"] == "drawer"  # labels are hints only, and can be switched off
 
 
+def test_a_front_without_a_handle_narrower_than_a_filler_is_fixed():
+    """``types.filler_width``: a handle-less front narrower than it is a fixed panel (a filler
+    or a sliver), with the reason; one with a handle, a wider one, or the rule off: typed."""
+    wide = dataclasses.replace(DRAWER_TYPES, filler_width=0.55)  # the analytic front is 0.5 m wide
+    parts, rep = run(None, cfg=ArticulateConfig(types=wide))
+    assert parts == [] and rep[0]["family"] == "fixed" and "filler" in rep[0]["reason"]
+    (p,), _ = run("center", cfg=ArticulateConfig(types=wide))
+    assert p.extra["family"] == "drawer"
+    for types in (dataclasses.replace(DRAWER_TYPES, filler_width=0.45), dataclasses.replace(DRAWER_TYPES, filler_width=None)):
+        (p,), rep = run(None, cfg=ArticulateConfig(types=types))
+        assert rep[0]["family"] == "door"
+    with pytest.raises(ConfigError, match="filler_width = -0.1"):
+        TypesConfig(filler_width=-0.1)
+
+
 def test_a_lone_front_without_a_handle_is_a_door_and_degenerate_segments_are_reported():
     """A lone front without a handle that can swing is a push-to-open door; which edge it
     hinges on is a guess (both sides score alike), so the decision is flagged. Without the
