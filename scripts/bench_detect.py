@@ -96,9 +96,10 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
     scene = kitchen_scene(base, split, k, layout=layout)
     sp = ScenePaths(out / split, f"kitchen_{k}")
     seed = 1000 * SPLITS.index(split) + k
-    if not sp.metrics("mesh").is_file() and layout:
-        sp.root.mkdir(parents=True, exist_ok=True)
-        (sp.root / LAYOUT_FILE).write_text(json.dumps(layout))
+    if not sp.metrics("mesh").is_file():
+        if layout:
+            sp.root.mkdir(parents=True, exist_ok=True)
+            (sp.root / LAYOUT_FILE).write_text(json.dumps(layout))
         with stage_run("capture", sp.capture, seed) as r:
             build_capture(f"{split}_{k}", scene, to_typed(CaptureConfig, cfg.capture, "capture"), r.dir, r.rng, ROOT)
         cap = load_capture(sp.capture, check_files=False)

@@ -36,3 +36,24 @@ def test_a_kitchen_built_with_other_layout_keys_is_not_reused(tmp_path):
     assert r.returncode != 0
     assert f"{k}: built with layout {{}}, not {{'module_widths': [0.3, 0.35]}}" in r.stderr
     assert sorted(p.name for p in k.rglob("*")) == ["mesh", "metrics.json"]
+
+
+@pytest.mark.parametrize("layout", [None, {"module_widths": [0.3, 0.35]}])
+def test_a_kitchen_not_built_yet_is_built(tmp_path, monkeypatch, layout):
+    """A kitchen without a mesh is built (capture, SDF, mesh), with or without ``--layout``;
+    ``layout.json`` is written only for a stress variant. The builders are replaced by
+    recorders: what is checked is which run, not what they make."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_detect", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    calls = []
+    monkeypatch.setattr(mod, "build_capture", lambda *a, **k: calls.append("capture"))
+    monkeypatch.setattr(mod, "run_sdf", lambda *a, **k: calls.append("sdf") or {})
+    monkeypatch.setattr(mod, "run_mesh", lambda *a, **k: calls.append("mesh") or {})
+    monkeypatch.setattr(mod, "load_capture", lambda *a, **k: None)
+    monkeypatch.setattr(mod, "load_field", lambda *a, **k: None)
+    row = mod.kitchen("train", 16, [], tmp_path, tmp_path / "weights.pt", layout=layout)
+    assert row == {"kitchen": 16} and calls == ["capture", "sdf", "mesh"]
+    assert (tmp_path / "train" / "kitchen_16" / "layout.json").is_file() == bool(layout)
