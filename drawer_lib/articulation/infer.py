@@ -186,7 +186,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
         terms = {}
-        walled = False
+        is_flanked = False
         if rfs is not None and ff.enabled and rfs[k].rgb is not None:
             border = {"lines": border_lines(fr, rfs[k], cfg.split, ff.line_slack),
                       "flush": flush_sides(fr, mesh_pts, tuple(ff.ring), ff.flush_tol, ff.min_points)}
@@ -197,8 +197,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                 report.append({"segment": s.id, "family": "none", "reason": why, "front": fr.to_json(), **info,
                                **terms})
                 continue
-            walled = flanked(border, ff)
-            terms["flanked"] = walled
+            is_flanked = flanked(border, ff)
+            terms["flanked"] = is_flanked
         if h is None and s.support < cfg.types.min_support:
             dec = Decision("fixed", reason=f"no handle, matched in {s.support} < {cfg.types.min_support} views")
         elif h is None and cfg.types.filler_width is not None and fr.size[0] < cfg.types.filler_width:
@@ -212,7 +212,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             ev = Evidence(handle=h, size=fr.size, z_mid=float(fr.center[2]) - floor_z, stacked=neighbours[k][0],
                           beside_left=neighbours[k][1], beside_right=neighbours[k][2], partner=k in partner,
                           rail=rail_extent(fr, mesh_pts, pt_normal), carcass=carcass, labels=s.labels,
-                          support=s.support, flanked=walled)
+                          support=s.support, flanked=is_flanked)
             dec, score_terms = decide_by_score(ev, cfg.types, weights, blocked)
             terms |= score_terms
         elif k in partner:
