@@ -293,7 +293,10 @@ class JointsConfig:
     ``sliding_min_travel``. A sliding door without a partner travels ``sliding_single_travel``
     x its width toward the side where the mesh lies deeper behind its plane (an open shelf or
     a panel it slides over, probed over ``sliding_probe`` x its width beyond each side edge),
-    away from its handle when both sides look alike."""
+    away from its handle when both sides look alike. Its track is looked for from
+    ``rail_inside`` inside its top or bottom edge to 6 cm beyond it
+    (:func:`~drawer_lib.articulation.probes.rail_run`): a mask that spills onto the track puts
+    the front's edge on it."""
 
     revolute_limit_deg: float = 90.0
     drawer_travel: float = 0.8
@@ -314,6 +317,7 @@ class JointsConfig:
     sliding_single_travel: float = 0.9
     sliding_probe: float = 0.5
     sliding_pull_meets: float | None = 0.15
+    rail_inside: float = 0.03
 
     def __post_init__(self):
         if len(self.sliding_step) != 2 or not 0 <= self.sliding_step[0] < self.sliding_step[1]:
@@ -322,6 +326,8 @@ class JointsConfig:
             raise ConfigError("articulate.joints: revolute_limit_deg and drawer_travel must be positive")
         if not 0 <= self.carcass_min_depth < self.carcass_max_depth:
             raise ConfigError("articulate.joints: need 0 <= carcass_min_depth < carcass_max_depth")
+        if not 0 <= self.rail_inside < 0.06:
+            raise ConfigError(f"articulate.joints.rail_inside = {self.rail_inside} must be in [0, 0.06) m")
 
 
 @dataclass(frozen=True)

@@ -41,19 +41,22 @@ def local_step(fa: Front, fb: Front, pa: np.ndarray, pb: np.ndarray, band: float
     return float(np.median(near_a @ n) - np.median(near_b @ n))
 
 
-def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> float:
+def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06, inside: float = 0.0) -> float:
     """The track's length along the front in units of its width (0: none; :func:`rail_run`)."""
-    run = rail_run(front, points, normals, band)
+    run = rail_run(front, points, normals, band, inside)
     return 0.0 if run is None else float((run[1] - run[0]) / max(front.size[0], 1e-6))
 
 
-def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06) -> tuple[float, float] | None:
+def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06, inside: float = 0.0
+             ) -> tuple[float, float] | None:
     """How far a track runs along the front's top or bottom edge: the unbroken run (2 cm bins
     along u, through the front's middle, at least 90 % of its width) of the mesh ``points``
     [P, 3] (``normals`` [P, 3]) that face outward (cosine > 0.7 with the front's normal), lie
-    within ``band`` beyond that edge and 0.4 to 4 cm in front of the front's plane (proud of it:
-    coplanar neighbours are not a track), divided by the front's width; the larger of the two
-    edges.
+    from ``inside`` within that edge to ``band`` beyond it and 0.4 to 4 cm in front of the
+    front's plane (proud of it: coplanar neighbours and the front's own face are not a track),
+    divided by the front's width; the larger of the two edges. ``inside`` > 0 finds a track
+    that a mask spilt onto puts inside the front's rectangle; a pull shorter than 90 % of the
+    width is not one.
     An edge with an upward-facing surface reaching more than 10 cm behind the plane there across
     half the front's width or more (a counter top, a shelf seen from above) has no track; a
     downward-facing one (the underside of a wall cabinet's top, seen through the open half a
@@ -68,14 +71,20 @@ def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06)
     near_u = np.abs(pu) < 2.0 * hw
     facing = normals @ n > 0.7
     flat = normals[:, 2] > 0.7  # facing up: a counter top or a shelf seen from above
+    proud = facing & (pn > 0.004) & (pn < 0.04)
+    if inside > 0:  # a frame-and-panel door's rails come with stiles as proud: look beyond the edges only
+        strips = [(s * pu - hw > -inside) & (s * pu - hw <= 0) & (np.abs(pv) < hh) & facing for s in (1.0, -1.0)]
+        if all(m.sum() >= 20 and proud[m].mean() > 0.5 for m in strips):
+            inside = 0.0
     best: tuple[float, float] | None = None
     for sgn in (1.0, -1.0):
         beyond = sgn * pv - hh
         in_band = near_u & (beyond > 0.0) & (beyond < band)
         deep = in_band & flat & (pn < -0.1)
+        in_band = near_u & (beyond > -inside) & (beyond < band)
         if deep.sum() >= 20 and np.ptp(pu[deep]) > hw:  # a counter top or a shelf across it, not a track
             continue
-        sel = in_band & facing & (pn > 0.004) & (pn < 0.04)
+        sel = in_band & proud
         if sel.sum() < 20:
             continue
         # the unbroken run of 2 cm bins along u holding such points, through the front's middle:

@@ -29,7 +29,7 @@ only as features whose weights are fitted.
 | stacked | coplanar fronts sharing its top or bottom edge (0, 0.5, 1 for 0, 1, 2+) |
 | beside | a coplanar front shares its left or right edge |
 | partner | a neighbouring front of the same height on another track (a sliding pair) |
-| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip within 6 cm beyond that edge standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) spans half of it there (:func:`~drawer_lib.articulation.probes.rail_extent`) |
+| rail | a track along the top or bottom edge: the unbroken length, in units of the front's width (at most 2; 0 under 0.9), of an outward-facing strip from ``joints.rail_inside`` inside that edge (where a mask that spilt onto the track puts the edge) to 6 cm beyond it, standing 0.4 .. 4 cm proud of the plane, when no deep horizontal surface (a counter) spans half of it beyond the edge (:func:`~drawer_lib.articulation.probes.rail_extent`) |
 | carcass | depth of the cabinet the mesh shows behind it (m, 0 when none) |
 | lab_drawer, lab_door | the fraction of the segment's label votes in drawer_labels / door_labels |
 | support | log(1 + views whose detections matched the segment) / log(50) |

@@ -45,7 +45,7 @@ def prior_weights() -> dict[str, dict[str, float]]:
         "door": {"handle": 1.0, "h_free": 2.5, "h_vertical": 0.5, "lab_door": 1.0, "bare_lone": 1.0},
         "flap_top": {"handle": 1.0, "h_bottom": 2.0, "h_center_u": 0.5},
         "flap_bottom": {"handle": 1.0, "h_top": 1.0, "lab_door": 1.5},
-        "sliding": {"partner": 5.0, "rail": 2.5},
+        "sliding": {"partner": 5.0, "rail": 3.0},
         "fixed": {"bias": 0.5},
     }
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
-from drawer_lib.articulation.config import ArticulateConfig, TypesConfig
-from drawer_lib.articulation.probes import rail_extent
+from drawer_lib.articulation.config import ArticulateConfig, JointsConfig, TypesConfig
+from drawer_lib.articulation.probes import rail_extent, rail_run
 from drawer_lib.articulation.scoring import Evidence, door_features, features, score
 from drawer_lib.articulation.vocab import COMMON, DOOR_ONLY, HYPOTHESES, WEIGHT_SETS, Handle, prior_weights
 from drawer_lib.bench.cases import CASES, Scene, run_cases
@@ -143,6 +143,30 @@ def test_rail_extent_finds_a_track_and_not_a_counter():
     # the pulls of the fronts above and beside it, with gaps between them: no track
     pulls = rail[(np.abs(rail[:, 0] - 0.25) > 0.06) & (np.abs(rail[:, 0] - 0.25) < 0.2)]
     assert rail_extent(f, pulls, out[: len(pulls)]) == 0.0
+
+
+def test_a_track_inside_the_fronts_edge_is_found_when_looked_for_there():
+    # the front's mask spilt onto its track: the track lies 0.5 .. 2.5 cm inside the top edge
+    f = Front((0.25, -0.6, 0.5), (0, -1.0, 0), (1.0, 0, 0), (0.5, 0.6))
+    g = np.random.default_rng(1)
+    out = np.tile([0, -1.0, 0], (400, 1))
+    rail = np.stack([g.uniform(-0.25, 0.75, 400), np.full(400, -0.61), g.uniform(0.775, 0.795, 400)], -1)
+    assert rail_extent(f, rail, out) == 0.0
+    assert rail_extent(f, rail, out, inside=0.03) == pytest.approx(2.0, abs=0.1)
+    lo, hi = rail_run(f, rail, out, inside=0.03)  # along u from the front's centre: 25 cm past each side
+    assert lo == pytest.approx(-0.5, abs=0.03) and hi == pytest.approx(0.5, abs=0.03)
+    # the front's own surface there, and a pull 30 cm long near its top: no track
+    face = np.stack([g.uniform(0.0, 0.5, 400), np.full(400, -0.6), g.uniform(0.77, 0.8, 400)], -1)
+    assert rail_extent(f, face, out, inside=0.03) == 0.0
+    bar = rail[np.abs(rail[:, 0] - 0.25) < 0.15]
+    assert rail_extent(f, bar, out[: len(bar)], inside=0.03) == 0.0
+    # a frame-and-panel door whose plane is its panel: rails and stiles 6 cm wide, 1 cm proud
+    fx, fz = g.uniform(0.0, 0.5, 6000), g.uniform(0.2, 0.8, 6000)
+    frame = (fx < 0.06) | (fx > 0.44) | (fz < 0.26) | (fz > 0.74)
+    shaker = np.stack([fx, np.where(frame, -0.61, -0.6), fz], -1)
+    assert rail_extent(f, shaker, np.tile([0, -1.0, 0], (6000, 1)), inside=0.03) == 0.0
+    with pytest.raises(ConfigError, match="rail_inside"):
+        JointsConfig(rail_inside=-0.01)
 
 
 def test_weights_are_checked():
