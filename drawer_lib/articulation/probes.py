@@ -79,8 +79,7 @@ def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06,
     best: tuple[float, float] | None = None
     for sgn in (1.0, -1.0):
         beyond = sgn * pv - hh
-        in_band = near_u & (beyond > 0.0) & (beyond < band)
-        deep = in_band & flat & (pn < -0.1)
+        deep = near_u & (beyond > 0.0) & (beyond < band) & flat & (pn < -0.1)  # read beyond the edge only
         in_band = near_u & (beyond > -inside) & (beyond < band)
         if deep.sum() >= 20 and np.ptp(pu[deep]) > hw:  # a counter top or a shelf across it, not a track
             continue
