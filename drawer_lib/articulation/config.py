@@ -22,7 +22,9 @@ class FrontsConfig:
     from the image border, when at least ``mask_min_frames`` masks say so. Coplanar fronts
     (within 0.75 x the smallest sliding step) whose facing edges lie within ``shared_edge_gap``
     (0 = off), overlap over ``shared_edge_overlap`` of the shorter side and whose axes agree
-    within ``shared_edge_angle_deg`` share one edge. Fronts smaller than ``min_size`` or larger
+    within ``shared_edge_angle_deg`` share one edge; so do two whose rectangles run into each
+    other by up to ``shared_edge_cross`` x the shorter side across that edge (0: only within
+    ``shared_edge_gap``), each cut back to where the two segments' surfaces part. Fronts smaller than ``min_size`` or larger
     than ``max_size`` (either side) are not parts. The gravity prior: a front whose fitted plane
     tilts less than ``plumb_deg`` from vertical is made plumb (its normal levelled; kitchen
     fronts hang plumb in a gravity-aligned world frame, and a plane fitted to a noisy mesh
@@ -44,6 +46,7 @@ class FrontsConfig:
     shared_edge_gap: float = 0.025
     shared_edge_overlap: float = 0.5
     shared_edge_angle_deg: float = 10.0
+    shared_edge_cross: float = 0.3
     sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
 
     def __post_init__(self):
@@ -51,6 +54,9 @@ class FrontsConfig:
             raise ConfigError("articulate.fronts: extent_percentile and mask_percentile must be in (0, 50)")
         if self.shared_edge_gap < 0:
             raise ConfigError(f"articulate.fronts.shared_edge_gap = {self.shared_edge_gap} must be >= 0 (0 turns it off)")
+        if not 0 <= self.shared_edge_cross < 0.5:
+            raise ConfigError(f"articulate.fronts.shared_edge_cross = {self.shared_edge_cross} must be in [0, 0.5) "
+                              "(a fraction of the shorter side; half or more is one front repeated, not two)")
         if not 0 < self.min_size < self.max_size:
             raise ConfigError("articulate.fronts: need 0 < min_size < max_size")
         if not 0 <= self.plumb_deg <= self.vertical_deg:

@@ -165,12 +165,15 @@ def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg:
 
 
 def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_overlap: float = 0.5,
-                   max_angle_deg: float = 10.0) -> list[tuple[int, int, float]]:
+                   max_angle_deg: float = 10.0, max_cross: float = 0.0) -> list[tuple[int, int, float]]:
     """Where front ``b`` abuts front ``a``: [(axis, side, offset)] with axis 0 (a's u) or 1 (a's
     v), side +1 when b lies beyond a's high edge along that axis and -1 beyond its low edge, and
     offset = b's centre along the *other* axis in a's frame (m). Abutting: coplanar within
     ``plane_tol`` m, same axes within ``max_angle_deg``, the facing edges under ``max_gap`` m
-    apart either way, overlapping over ``min_overlap`` of the shorter side."""
+    apart either way, overlapping over ``min_overlap`` of the shorter side. With ``max_cross``
+    > 0 the facing edges may also cross each other (the rectangles overlap along the axis) by
+    up to ``max_cross`` x the shorter of the two sides along it; one rectangle over most of the
+    other is no neighbour but a repeat, and never abuts."""
     cos_t = np.cos(np.deg2rad(max_angle_deg))
     na, ua, va = np.asarray(a.normal), np.asarray(a.u), a.v
     d = np.asarray(b.center) - np.asarray(a.center)
@@ -185,9 +188,10 @@ def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_ove
         overlap = min(ohi, obhi) - max(olo, oblo)
         if overlap < min_overlap * min(ohi - olo, obhi - oblo):
             continue
-        if off > 0 and abs(blo - ahi) < max_gap:
+        cross = max(max_gap, max_cross * min(ahi - alo, bhi - blo))  # how far the edges may run past each other
+        if off > 0 and -cross < blo - ahi < max_gap:
             out.append((ax, 1, float(other)))
-        elif off < 0 and abs(alo - bhi) < max_gap:
+        elif off < 0 and -cross < alo - bhi < max_gap:
             out.append((ax, -1, float(other)))
     return out
 
@@ -212,32 +216,63 @@ def coplanar_iou(a: Front, b: Front, plane_tol: float = 0.05, max_angle_deg: flo
     return inter / union if union > 0 else 0.0
 
 
+def edge_moves(before: Front, after: Front) -> dict[str, float]:
+    """How far each side of ``before`` moved inward to give ``after`` (same plane and axes):
+    {"left" / "right" / "bottom" / "top" (along u, v): m}, negative for a side that moved out."""
+    d = np.asarray(after.center) - np.asarray(before.center)
+    cu, cv = float(d @ np.asarray(before.u)), float(d @ before.v)
+    (bw, bh), (aw, ah) = (np.asarray(before.size) / 2).tolist(), (np.asarray(after.size) / 2).tolist()
+    return {"left": (cu - aw) + bw, "right": bw - (cu + aw), "bottom": (cv - ah) + bh, "top": bh - (cv + ah)}
+
+
 def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, min_overlap: float = 0.5,
-                max_angle_deg: float = 10.0) -> list[Front]:
+                max_angle_deg: float = 10.0, max_cross: float = 0.0,
+                points: list[Float[np.ndarray, "P 3"] | None] | None = None, pct: float = 2.0) -> list[Front]:
     """Fronts whose facing edges abut (:func:`abutting_edges`) have one boundary, estimated
     independently from each front's masks: both edges move to the midpoint of the two estimates
     (the mean of the midpoints when an edge has several neighbours), halving the variance of a
-    hinge edge that a neighbour shares. A sliding pair, a track apart, is not coplanar and is
-    left alone. ``max_gap`` <= 0 returns the fronts unchanged."""
+    hinge edge that a neighbour shares. That includes two coplanar rectangles that run into
+    each other by more than ``max_gap``, up to ``max_cross`` x the shorter side (masks that
+    spill onto a neighbour): two fronts in one plane cannot both be there, so neither could
+    open past the other. One front's masks spilt, not both, so the middle of the overlap is no
+    estimate of the boundary: with ``points`` (each front's own surface points [P, 3], None for
+    one without) the boundary is where the two surfaces part, midway between the ``pct`` and
+    100 - ``pct`` percentiles of the two fronts' points along that axis (bounded by the overlap),
+    and the middle of the overlap only where either has fewer than 10 points. A sliding pair, a
+    track apart, is not coplanar and is left alone. ``max_gap`` <= 0 returns the fronts
+    unchanged."""
     if max_gap <= 0 or len(fronts) < 2:
         return fronts
     # per front: (lo_u, hi_u, lo_v, hi_v) in its own frame
     ext = [[-f.size[0] / 2, f.size[0] / 2, -f.size[1] / 2, f.size[1] / 2] for f in fronts]
     props: list[list[list[float]]] = [[[], [], [], []] for _ in fronts]
+
+    def along(k: int, f: Front, ax: int) -> np.ndarray | None:  # front k's points along f's axis ax
+        P = None if points is None else points[k]
+        if P is None or len(P) < 10:
+            return None
+        return (np.asarray(P) - np.asarray(f.center)) @ (np.asarray(f.u) if ax == 0 else f.v)
+
     for i, a in enumerate(fronts):
         for j in range(i + 1, len(fronts)):
             b = fronts[j]
             d = np.asarray(b.center) - np.asarray(a.center)
             offs = (d @ np.asarray(a.u), d @ a.v)  # b's centre in a's frame
-            for ax, side, _ in abutting_edges(a, b, max_gap, plane_tol, min_overlap, max_angle_deg):
+            for ax, side, _ in abutting_edges(a, b, max_gap, plane_tol, min_overlap, max_angle_deg, max_cross):
                 k = 2 * ax  # index of lo along this axis in (lo_u, hi_u, lo_v, hi_v)
                 off, half_b = offs[ax], b.size[ax] / 2
+                # a's facing edge and b's, in a's frame: (low front's high edge, high front's low edge)
+                lo_hi, hi_lo = (ext[i][k + 1], off - half_b) if side > 0 else (off + half_b, ext[i][k])
+                m = (lo_hi + hi_lo) / 2
+                pa, pb = along(i, a, ax), along(j, a, ax)
+                if hi_lo - lo_hi < -max_gap and pa is not None and pb is not None:  # they cross: where the surfaces part
+                    lo_pts, hi_pts = (pa, pb) if side > 0 else (pb, pa)
+                    m = float(np.clip((np.percentile(lo_pts, 100 - pct) + np.percentile(hi_pts, pct)) / 2,
+                                      hi_lo, lo_hi))
                 if side > 0:  # b beyond a's high edge
-                    m = (ext[i][k + 1] + (off - half_b)) / 2
                     props[i][k + 1].append(m)
                     props[j][k].append(m - off)
                 else:  # b beyond a's low edge
-                    m = (ext[i][k] + (off + half_b)) / 2
                     props[i][k].append(m)
                     props[j][k + 1].append(m - off)
     out = []

@@ -17,6 +17,7 @@ from drawer_lib.articulation.decide import decide_by_handle, decide_by_score
 from drawer_lib.articulation.fronts import (
     abutting_edges,
     coplanar_iou,
+    edge_moves,
     fit_front,
     plumb,
     refine_with_masks,
@@ -55,7 +56,10 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     alone, each rectangle is cut where the surface steps by a sliding track's offset
     (``cfg.split.depth_steps``) and where the segment's outline steps (``extent_steps``), the
     evidence in the info's ``mesh_cuts``. A planar segment whose label votes are mostly no front
-    label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part."""
+    label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part.
+    Last, coplanar neighbours share their edges (:func:`~drawer_lib.articulation.fronts.share_edges`,
+    on each front's own face centres); a side that moved in by more than half of
+    ``shared_edge_gap`` (two rectangles that ran into each other) is in the info's ``cut_back``."""
     fc = cfg.fronts
     sin_v = np.sin(np.deg2rad(fc.vertical_deg))
     fits: list[tuple[Segment, Front, dict]] = []
@@ -104,8 +108,14 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
-                         min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg)
-    return [(s, f, info) for (s, _, info), f in zip(fits, fronts)]
+                         min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg,
+                         max_cross=fc.shared_edge_cross, pct=fc.extent_percentile,
+                         points=[piece_points(centres[s.faces], f, "piece" in info) for s, f, info in fits])
+    out = []
+    for (s, before, info), f in zip(fits, fronts):
+        cut = {side: round(m, 4) for side, m in edge_moves(before, f).items() if m > fc.shared_edge_gap / 2}
+        out.append((s, f, info | ({"cut_back": cut} if cut else {})))
+    return out
 
 
 def piece_points(points: np.ndarray, front: Front, piece: bool) -> np.ndarray:

@@ -10,7 +10,7 @@ import trimesh
 
 from drawer_lib.articulation.config import ArticulateConfig, FrontsConfig, HandlesConfig, TypesConfig
 from drawer_lib.articulation.estimators import get_estimator
-from drawer_lib.articulation.fronts import refine_with_masks, share_edges
+from drawer_lib.articulation.fronts import edge_moves, refine_with_masks, share_edges
 from drawer_lib.articulation.handles import (describe_handle, handle_candidates, handle_clusters, heaviest,
                                              rect_distance, resolve_split_pulls, resolve_stacked_pulls)
 from drawer_lib.articulation.infer import infer_parts
@@ -362,6 +362,54 @@ def test_abutting_fronts_share_one_boundary():
     assert share_edges([a, b], max_gap=0.0) == [a, b]  # off
     with pytest.raises(ConfigError, match="shared_edge_gap"):
         FrontsConfig(shared_edge_gap=-0.01)
+
+
+def test_coplanar_fronts_that_run_into_each_other_are_cut_back_to_the_overlaps_middle():
+    """Masks that spill onto the neighbour put a door over 0.404..0.696 m and the front below it
+    over 0.109..0.461 m: 57 mm of one plane claimed twice, so the door cannot swing past the
+    front below. Within ``max_cross`` (0.3 x the shorter height, 88 mm) both end at the
+    overlap's middle, 0.4325, or, given each front's surface points, where the two surfaces
+    part (0.404, the lower front's masks having spilt); without it, or past it, or a track
+    apart, nothing moves; a rectangle over most of another (a repeat, not a neighbour) is never
+    cut."""
+    from drawer_lib.io.parts import Front
+
+    def front(x0, x1, z0, z1, y=Y):
+        return Front(((x0 + x1) / 2, y, (z0 + z1) / 2), (0, -1, 0), (1, 0, 0), (x1 - x0, z1 - z0))
+
+    def z_edges(f):
+        return (f.center[2] - f.size[1] / 2, f.center[2] + f.size[1] / 2)
+
+    upper, lower = front(0.58, 1.03, 0.404, 0.696), front(0.60, 1.02, 0.109, 0.461)
+    up, lo = share_edges([upper, lower], max_gap=0.025, plane_tol=0.006, max_cross=0.3)
+    assert z_edges(up) == pytest.approx((0.4325, 0.696)) and z_edges(lo) == pytest.approx((0.109, 0.4325))
+    assert up.size[0] == pytest.approx(upper.size[0]) and lo.size[0] == pytest.approx(lower.size[0])
+    assert edge_moves(upper, up) == pytest.approx({"left": 0, "right": 0, "bottom": 0.0285, "top": 0}, abs=1e-9)
+    assert edge_moves(lower, lo) == pytest.approx({"left": 0, "right": 0, "bottom": 0, "top": 0.0285}, abs=1e-9)
+    assert share_edges([upper, lower], max_gap=0.025, plane_tol=0.006) == [upper, lower]  # max_cross = 0
+    # the lower front's masks spilt: its surface ends at 0.404, where the upper one's begins
+    rng = np.random.default_rng(0)
+
+    def surface(x0, x1, z0, z1, n=400):
+        return np.stack([rng.uniform(x0, x1, n), np.full(n, Y), rng.uniform(z0, z1, n)], -1)
+
+    pts = [surface(0.58, 1.03, 0.404, 0.696), surface(0.60, 1.02, 0.109, 0.404)]
+    up, lo = share_edges([upper, lower], max_gap=0.025, plane_tol=0.006, max_cross=0.3, points=pts)
+    assert z_edges(up)[0] == pytest.approx(0.404, abs=0.004) and z_edges(lo)[1] == pytest.approx(z_edges(up)[0])
+    up2, lo2 = share_edges([upper, lower], max_gap=0.025, plane_tol=0.006, max_cross=0.3, points=[pts[0], None])
+    assert z_edges(up2)[0] == pytest.approx(0.4325)  # one without points: the overlap's middle
+    a, b = front(0.0, 0.49, 0.1, 0.8), front(0.51, 1.0, 0.1, 0.8)  # a gap: the masks' midpoint, points or not
+    ga, gb = share_edges([a, b], max_gap=0.025, plane_tol=0.006, max_cross=0.3,
+                         points=[surface(0.0, 0.45, 0.1, 0.8), surface(0.55, 1.0, 0.1, 0.8)])
+    assert ga.center[0] + ga.size[0] / 2 == pytest.approx(0.50) and gb.center[0] - gb.size[0] / 2 == pytest.approx(0.50)
+    deep = front(0.60, 1.02, 0.109, 0.50)  # 96 mm into a 292 mm door: past 0.3 of it
+    assert share_edges([upper, deep], max_gap=0.025, plane_tol=0.006, max_cross=0.3) == [upper, deep]
+    behind = front(0.60, 1.02, 0.109, 0.461, y=Y - 0.010)  # a sliding panel on the track behind
+    assert share_edges([upper, behind], max_gap=0.025, plane_tol=0.006, max_cross=0.3) == [upper, behind]
+    inside = front(0.62, 1.0, 0.43, 0.69)  # a drawer found inside a door's rectangle
+    assert share_edges([upper, inside], max_gap=0.025, plane_tol=0.006, max_cross=0.45) == [upper, inside]
+    with pytest.raises(ConfigError, match="shared_edge_cross"):
+        FrontsConfig(shared_edge_cross=0.5)
 
 
 def test_learned_estimator_slots_say_why_they_cannot_run():
