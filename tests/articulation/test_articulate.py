@@ -364,7 +364,7 @@ def test_abutting_fronts_share_one_boundary():
         FrontsConfig(shared_edge_gap=-0.01)
 
 
-def test_coplanar_fronts_that_run_into_each_other_are_cut_back_to_the_overlaps_middle():
+def test_coplanar_fronts_that_run_into_each_other_share_one_edge_where_their_surfaces_part():
     """Masks that spill onto the neighbour put a door over 0.404..0.696 m and the front below it
     over 0.109..0.461 m: 57 mm of one plane claimed twice, so the door cannot swing past the
     front below. Within ``max_cross`` (0.3 x the shorter height, 88 mm) both end at the
