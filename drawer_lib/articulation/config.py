@@ -24,8 +24,8 @@ class FrontsConfig:
     (0 = off), overlap over ``shared_edge_overlap`` of the shorter side and whose axes agree
     within ``shared_edge_angle_deg`` share one edge; so do two whose rectangles run into each
     other by up to ``shared_edge_cross`` x the shorter side across that edge (0: only within
-    ``shared_edge_gap``), each cut back to where the two segments' surfaces part. Fronts smaller than ``min_size`` or larger
-    than ``max_size`` (either side) are not parts. The gravity prior: a front whose fitted plane
+    ``shared_edge_gap``), each cut back to where the two segments' surfaces part. Fronts smaller
+    than ``min_size`` or larger than ``max_size`` (either side) are not parts. The gravity prior: a front whose fitted plane
     tilts less than ``plumb_deg`` from vertical is made plumb (its normal levelled; kitchen
     fronts hang plumb in a gravity-aligned world frame, and a plane fitted to a noisy mesh
     tilts by a degree or more, which would roll a drawer open on its own or swing a door on

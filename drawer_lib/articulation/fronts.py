@@ -264,8 +264,8 @@ def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, m
                 # a's facing edge and b's, in a's frame: (low front's high edge, high front's low edge)
                 lo_hi, hi_lo = (ext[i][k + 1], off - half_b) if side > 0 else (off + half_b, ext[i][k])
                 m = (lo_hi + hi_lo) / 2
-                pa, pb = along(i, a, ax), along(j, a, ax)
-                if hi_lo - lo_hi < -max_gap and pa is not None and pb is not None:  # they cross: where the surfaces part
+                pa, pb = (along(i, a, ax), along(j, a, ax)) if hi_lo - lo_hi < -max_gap else (None, None)
+                if pa is not None and pb is not None:  # they cross: where the surfaces part
                     lo_pts, hi_pts = (pa, pb) if side > 0 else (pb, pa)
                     m = float(np.clip((np.percentile(lo_pts, 100 - pct) + np.percentile(hi_pts, pct)) / 2,
                                       hi_lo, lo_hi))

@@ -221,8 +221,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                 blocked = blocked_hypotheses(terms["interaction"], cfg.interaction)
             ev = Evidence(handle=h, size=fr.size, z_mid=float(fr.center[2]) - floor_z, stacked=neighbours[k][0],
                           beside_left=neighbours[k][1], beside_right=neighbours[k][2], partner=k in partner,
-                          rail=rail_extent(fr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside), carcass=carcass, labels=s.labels,
-                          support=s.support, flanked=is_flanked)
+                          rail=rail_extent(fr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside), carcass=carcass,
+                          labels=s.labels, support=s.support, flanked=is_flanked)
             dec, score_terms = decide_by_score(ev, cfg.types, weights, blocked)
             terms |= score_terms
         elif k in partner:
@@ -248,7 +248,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             if dec.margin is not None:
                 extra["margin"] = round(dec.margin, 4)
         pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
-        side = (slide_side(fr, mesh_pts, h, cfg.joints, rail_run(fr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside))
+        side = (slide_side(fr, mesh_pts, h, cfg.joints,
+                           rail_run(fr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside))
                 if dec.family == "sliding" and pair is None else None)
         joint_front, tilt = plumb(fr, cfg.fronts.plumb_deg)  # the evidence above read the fitted plane
         row |= {"tilt_deg": round(tilt, 3), "plumbed": joint_front is not fr}
