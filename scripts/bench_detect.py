@@ -19,6 +19,7 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
     python scripts/bench_detect.py --split train --tag mw1 --set decompose.missing_weight=1   # a variant, same detections
+    python scripts/bench_detect.py --split train --tag flip --set detect.builtin.flip=true    # a variant with its own detections
     python scripts/bench_detect.py --split hand --kitchens 0 1 2 3 --detect capture builtin   # kitchens written by hand
     python scripts/bench_detect.py --split train --kitchens 16 17 --layout 'module_widths=[0.3, 0.35]' --out DIR
         # a stress variant: the same kitchens with narrower fronts (built apart, in DIR)
@@ -28,6 +29,7 @@ scores again without rebuilding the capture and geometry). Simulated input: rend
 """
 
 import argparse
+import dataclasses
 import json
 import os
 import time
@@ -83,8 +85,9 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
             layout: dict | None = None) -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
     weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior.
-    ``overrides``: Hydra overrides of decompose and articulate; ``tag``: their outputs go to
-    ``by_detector/<model>-<tag>/``, reading the detections of ``by_detector/<model>/``.
+    ``overrides``: Hydra overrides of detect, decompose and articulate; ``tag``: their outputs
+    go to ``by_detector/<model>-<tag>/``, reading the detections of ``by_detector/<model>/``
+    unless ``overrides`` change ``detect.*`` (then the variant's own detections, there).
     ``layout``: keys of the kitchen's layout block over the split's (a stress variant of the
     split: other widths, handle styles); recorded in ``layout.json`` beside the kitchen, and a
     kitchen built with other keys is not reused."""
@@ -109,14 +112,16 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
             r.metrics.update(run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(sp.field), cap, r))
     cap = load_capture(sp.capture, check_files=False)
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
+    own_detect = any(o.lstrip("+~").startswith("detect.") for o in overrides)
     row = {"kitchen": k}
     for model in models:
-        d = ScenePaths(sp.root / "by_detector", model)  # the detections
         v = ScenePaths(sp.root / "by_detector", variant(model, tag))  # decompose, articulate
+        d = v if own_detect else ScenePaths(sp.root / "by_detector", model)  # the detections
         t0 = time.perf_counter()
-        if decisions is None and not (tag and d.metrics("detect").is_file()):
+        if decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
+            dc = dataclasses.replace(to_typed(DetectConfig, cfg.detect, "detect"), model=model)
             with stage_run("detect", d.detect, seed) as r:
-                r.metrics.update(run_detect(DetectConfig(model=model), cap, weights, r))
+                r.metrics.update(run_detect(dc, cap, weights, r))
         elif decisions is not None and not v.metrics("decompose").is_file():
             raise SystemExit(f"error: {v.metrics('decompose')}: missing; run this split with --decisions prior first")
         vcap = apply_overlay(cap, d.file("detect", "index"))
@@ -217,12 +222,13 @@ def main() -> None:
     ap.add_argument("--fit-kitchens", type=int, nargs="+", default=[16, 17, 18, 19],
                     help="train kitchens (already run with --split train) the fitted weights learn from")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                    help="Hydra overrides of decompose and articulate (e.g. decompose.missing_weight=1)")
+                    help="Hydra overrides of detect, decompose and articulate (e.g. decompose.missing_weight=1)")
     ap.add_argument("--layout", nargs="*", default=[], metavar="KEY=VALUE",
                     help="keys of each kitchen's layout block over its split's, values in YAML (a stress "
                     "variant of the split, e.g. 'module_widths=[0.3, 0.35]'); needs an --out of its own")
     ap.add_argument("--tag", default="", help="write decompose and articulate to by_detector/<model>-TAG/ "
-                    "(the detections of by_detector/<model>/ are read; the summary is summary-TAG.json)")
+                    "(the detections of by_detector/<model>/ are read unless --set changes detect.*; the summary is "
+                    "summary-TAG.json)")
     a = ap.parse_args()
     layout = parse_layout(a.layout)
     if a.kitchens is None:
@@ -232,8 +238,10 @@ def main() -> None:
         raise SystemExit(f"error: --kitchens {' '.join(map(str, a.kitchens))}: {why}")
     if a.set and not a.tag:
         raise SystemExit("error: --set needs a --tag, so that the variant does not overwrite the default's outputs")
-    if any(not o.split("=")[0].lstrip("+~").startswith(("decompose.", "articulate.")) for o in a.set):
-        raise SystemExit(f"error: --set {' '.join(a.set)}: only decompose.* and articulate.* keys vary here")
+    if any(not o.split("=")[0].lstrip("+~").startswith(("detect.", "decompose.", "articulate.")) for o in a.set):
+        raise SystemExit(f"error: --set {' '.join(a.set)}: only detect.*, decompose.* and articulate.* keys vary here")
+    if any(o.lstrip("+~").startswith("detect.model") for o in a.set):
+        raise SystemExit("error: --set detect.model: the models are --detect's")
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
     check_built(a.out, a.split, a.kitchens, layout)

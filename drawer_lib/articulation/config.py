@@ -24,7 +24,9 @@ class FrontsConfig:
     (0 = off), overlap over ``shared_edge_overlap`` of the shorter side and whose axes agree
     within ``shared_edge_angle_deg`` share one edge; so do two whose rectangles run into each
     other by up to ``shared_edge_cross`` x the shorter side across that edge (0: only within
-    ``shared_edge_gap``), each cut back to where the two segments' surfaces part. Fronts smaller
+    ``shared_edge_gap``), each cut back to where the two segments' surfaces part. Before that, a
+    front with at least ``repeat_inside`` of its area inside a larger coplanar front is that front
+    found twice and is dropped (0: off; :func:`~drawer_lib.articulation.infer.drop_fronts_inside`). Fronts smaller
     than ``min_size`` or larger than ``max_size`` (either side) are not parts. The gravity prior: a front whose fitted plane
     tilts less than ``plumb_deg`` from vertical is made plumb (its normal levelled; kitchen
     fronts hang plumb in a gravity-aligned world frame, and a plane fitted to a noisy mesh
@@ -47,6 +49,7 @@ class FrontsConfig:
     shared_edge_overlap: float = 0.5
     shared_edge_angle_deg: float = 10.0
     shared_edge_cross: float = 0.3
+    repeat_inside: float = 0.8
     sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
 
     def __post_init__(self):
@@ -57,6 +60,9 @@ class FrontsConfig:
         if not 0 <= self.shared_edge_cross < 0.5:
             raise ConfigError(f"articulate.fronts.shared_edge_cross = {self.shared_edge_cross} must be in [0, 0.5) "
                               "(a fraction of the shorter side; half or more is one front repeated, not two)")
+        if not (self.repeat_inside == 0 or 0.5 < self.repeat_inside <= 1):
+            raise ConfigError(f"articulate.fronts.repeat_inside = {self.repeat_inside} must be 0 (off) or in (0.5, 1] "
+                              "(a share of the smaller front's area; less is two fronts running into each other)")
         if not 0 < self.min_size < self.max_size:
             raise ConfigError("articulate.fronts: need 0 < min_size < max_size")
         if not 0 <= self.plumb_deg <= self.vertical_deg:

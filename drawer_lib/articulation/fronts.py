@@ -196,24 +196,38 @@ def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_ove
     return out
 
 
+def _coplanar_overlap(a: Front, b: Front, plane_tol: float, max_angle_deg: float) -> tuple[float, float]:
+    """(area of the two rectangles' intersection in ``a``'s plane, ``b``'s area there) in m²;
+    (0, area) when their normals differ by more than ``max_angle_deg`` or ``b``'s centre lies
+    farther than ``plane_tol`` (m) from ``a``'s plane. ``b``'s corners are cast onto ``a``'s u, v
+    and bounded there."""
+    na, nb = np.asarray(a.normal), np.asarray(b.normal)
+    ca = np.asarray(a.center)
+    u, v = np.asarray(a.u), a.v
+    rel = b.corners() - ca
+    bu, bv = rel @ u, rel @ v
+    area_b = float(np.ptp(bu) * np.ptp(bv))
+    if na @ nb < np.cos(np.deg2rad(max_angle_deg)) or abs((np.asarray(b.center) - ca) @ na) > plane_tol:
+        return 0.0, area_b
+    lo = np.maximum([-a.size[0] / 2, -a.size[1] / 2], [bu.min(), bv.min()])
+    hi = np.minimum([a.size[0] / 2, a.size[1] / 2], [bu.max(), bv.max()])
+    return float(np.prod(np.clip(hi - lo, 0.0, None))), area_b
+
+
 def coplanar_iou(a: Front, b: Front, plane_tol: float = 0.05, max_angle_deg: float = 25.0) -> float:
     """IoU of two fronts' rectangles in ``a``'s plane (``b``'s corners cast onto ``a``'s u, v and
     bounded there); 0 when their normals differ by more than ``max_angle_deg`` or ``b``'s centre
     lies farther than ``plane_tol`` (m) from ``a``'s plane."""
-    na, nb = np.asarray(a.normal), np.asarray(b.normal)
-    if na @ nb < np.cos(np.deg2rad(max_angle_deg)):
-        return 0.0
-    ca = np.asarray(a.center)
-    if abs((np.asarray(b.center) - ca) @ na) > plane_tol:
-        return 0.0
-    u, v = np.asarray(a.u), a.v
-    rel = b.corners() - ca
-    bu, bv = rel @ u, rel @ v
-    lo = np.maximum([-a.size[0] / 2, -a.size[1] / 2], [bu.min(), bv.min()])
-    hi = np.minimum([a.size[0] / 2, a.size[1] / 2], [bu.max(), bv.max()])
-    inter = float(np.prod(np.clip(hi - lo, 0.0, None)))
-    union = a.size[0] * a.size[1] + float(np.ptp(bu) * np.ptp(bv)) - inter
+    inter, area_b = _coplanar_overlap(a, b, plane_tol, max_angle_deg)
+    union = a.size[0] * a.size[1] + area_b - inter
     return inter / union if union > 0 else 0.0
+
+
+def share_inside(a: Front, b: Front, plane_tol: float, max_angle_deg: float = 10.0) -> float:
+    """The share of ``b``'s rectangle that lies inside ``a``'s (in ``a``'s plane), in [0, 1]; 0
+    when the two are not coplanar (as :func:`coplanar_iou` says, with these tolerances)."""
+    inter, area_b = _coplanar_overlap(a, b, plane_tol, max_angle_deg)
+    return inter / area_b if area_b > 0 else 0.0
 
 
 def edge_moves(before: Front, after: Front) -> dict[str, float]:

@@ -23,6 +23,7 @@ from drawer_lib.articulation.fronts import (
     refine_with_masks,
     sample_points,
     share_edges,
+    share_inside,
 )
 from drawer_lib.articulation.handles import colour_handle, front_handles
 from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, front_coords, interaction_evidence
@@ -107,6 +108,9 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                     | ({"mesh_cuts": cuts} if cuts else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
+    if fc.repeat_inside > 0:
+        fits = drop_fronts_inside(fits, fc.repeat_inside, 0.75 * cfg.joints.sliding_step[0], fc.shared_edge_angle_deg,
+                                  report)
     fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
                          min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg,
                          max_cross=fc.shared_edge_cross, pct=fc.extent_percentile,
@@ -148,6 +152,31 @@ def drop_duplicate_pieces(fits: list[tuple[Segment, Front, dict]], min_iou: floa
         else:
             kept.append(f)
     return [x for i, x in enumerate(fits) if i not in drop]
+
+
+def drop_fronts_inside(fits: list[tuple[Segment, Front, dict]], min_share: float, plane_tol: float,
+                       max_angle_deg: float, report: list[dict]) -> list[tuple[Segment, Front, dict]]:
+    """``fits`` without the fronts that lie inside a larger coplanar front: a rectangle with at
+    least ``min_share`` of its area inside another's (:func:`share_inside`; planes within
+    ``plane_tol`` m and ``max_angle_deg``, so a sliding panel on the other track is never one)
+    is that front found a second time, from masks that covered part of it (a highlight, a
+    half-seen edge). Two fronts cannot fill one place, so the smaller goes; larger fronts are
+    kept first, and ``report`` gives each dropped one's share inside (the decision's margin is
+    its distance to ``min_share``)."""
+    order = sorted(range(len(fits)), key=lambda i: -float(np.prod(fits[i][1].size)))
+    kept: list[int] = []
+    for i in order:
+        s, f, info = fits[i]
+        shares = [(share_inside(fits[j][1], f, plane_tol, max_angle_deg), j) for j in kept]
+        share, j = max(shares, default=(0.0, -1))
+        if share >= min_share:
+            report.append({"segment": s.id, "family": "none", "reason": f"lies {share:.0%} inside the front of segment "
+                           f"{fits[j][0].id}: that front found again", "inside": round(share, 4),
+                           "repeats": fits[j][0].id})
+        else:
+            kept.append(i)
+    keep = set(kept)
+    return [x for i, x in enumerate(fits) if i in keep]
 
 
 def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndarray, cfg: ArticulateConfig,

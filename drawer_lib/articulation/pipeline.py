@@ -95,4 +95,5 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
         f = p.extra.get("family", p.kind)
         fam[f] = fam.get(f, 0) + 1
     return {"estimator": cfg.estimator, "n_parts": len(parts), **{f"n_{k}": v for k, v in pf.kinds().items()},
-            "families": fam, "n_fronts_cut_back": sum("cut_back" in r for r in report if r.get("part"))}
+            "families": fam, "n_fronts_cut_back": sum("cut_back" in r for r in report if r.get("part")),
+            "n_fronts_found_twice": sum("inside" in r for r in report)}

@@ -412,6 +412,41 @@ def test_coplanar_fronts_that_run_into_each_other_share_one_edge_where_their_sur
         FrontsConfig(shared_edge_cross=0.5)
 
 
+def test_a_front_found_again_inside_a_larger_one_is_dropped_and_reported():
+    """A 0.11 m drawer's rectangle inside a 0.25 m drawer's (the same front found twice, from
+    masks over part of it): the smaller goes, whichever order the fits come in, and the report
+    names the front it repeats with the share inside. A neighbour that runs 0.3 into it, a panel
+    a track behind, a smaller front beside it and the rule turned off keep every front."""
+    from drawer_lib.articulation.fronts import share_inside
+    from drawer_lib.articulation.infer import drop_fronts_inside
+    from drawer_lib.io.parts import Front
+
+    def front(x0, x1, z0, z1, y=Y):
+        return Front(((x0 + x1) / 2, y, (z0 + z1) / 2), (0, -1, 0), (1, 0, 0), (x1 - x0, z1 - z0))
+
+    def seg(i):
+        return Segment(i, np.zeros(0, np.int64), 1.0, 5, {}, True, np.zeros(3), 0.0, np.zeros(3))
+
+    whole, again = front(0.0, 0.40, 0.50, 0.75), front(0.005, 0.405, 0.60, 0.71)
+    assert share_inside(whole, again, 0.006) == pytest.approx(0.395 / 0.40)
+    assert share_inside(again, whole, 0.006) == pytest.approx(0.395 * 0.11 / (0.40 * 0.25))
+    for fits in ([(seg(0), whole, {}), (seg(1), again, {})], [(seg(1), again, {}), (seg(0), whole, {})]):
+        report = []
+        kept = drop_fronts_inside(fits, 0.8, 0.006, 10.0, report)
+        assert [s.id for s, _, _ in kept] == [0]
+        assert report == [{"segment": 1, "family": "none", "reason": "lies 99% inside the front of segment 0: that "
+                           "front found again", "inside": pytest.approx(0.9875), "repeats": 0}]
+    below = front(0.0, 0.40, 0.30, 0.575)  # runs 7.5 cm into it: 0.27 of its area, a neighbour
+    behind = front(0.005, 0.405, 0.60, 0.71, y=Y - 0.010)  # a sliding panel on the track behind
+    beside = front(0.41, 0.61, 0.60, 0.71)
+    for other in (below, behind, beside):
+        fits = [(seg(0), whole, {}), (seg(1), other, {})]
+        assert drop_fronts_inside(fits, 0.8, 0.006, 10.0, []) == fits
+    with pytest.raises(ConfigError, match="repeat_inside"):
+        FrontsConfig(repeat_inside=0.5)
+    assert FrontsConfig(repeat_inside=0).repeat_inside == 0
+
+
 def test_learned_estimator_slots_say_why_they_cannot_run():
     assert get_estimator("geometric") is infer_parts
     with pytest.raises(ConfigError, match="weights"):

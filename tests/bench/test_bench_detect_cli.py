@@ -12,7 +12,8 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_detect.py"
 
 @pytest.mark.parametrize("args, message", [
     (["--set", "decompose.missing_weight=0"], "--set needs a --tag"),
-    (["--tag", "t", "--set", "sdf.method=tsdf"], "only decompose.* and articulate.* keys vary here"),
+    (["--tag", "t", "--set", "sdf.method=tsdf"], "only detect.*, decompose.* and articulate.* keys vary here"),
+    (["--tag", "t", "--set", "detect.model=none"], "the models are --detect's"),
     (["--split", "hand", "--kitchens", "2", "8"], "the hand split has kitchens 0 .. 7"),
     (["--layout", "module_width=[0.3]"], "not KEY=VALUE with KEY a layout field"),
     (["--layout", "module_widths"], "not KEY=VALUE with KEY a layout field"),
