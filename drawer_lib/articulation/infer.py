@@ -162,7 +162,7 @@ def drop_fronts_inside(fits: list[tuple[Segment, Front, dict]], min_share: float
     is that front found a second time, from masks that covered part of it (a highlight, a
     half-seen edge). Two fronts cannot fill one place, so the smaller goes; larger fronts are
     kept first, and ``report`` gives each dropped one's share inside (the decision's margin is
-    its distance to ``min_share``)."""
+    its distance to ``min_share``) and, for a piece of a cut segment, which piece it was."""
     order = sorted(range(len(fits)), key=lambda i: -float(np.prod(fits[i][1].size)))
     kept: list[int] = []
     for i in order:
@@ -172,7 +172,7 @@ def drop_fronts_inside(fits: list[tuple[Segment, Front, dict]], min_share: float
         if share >= min_share:
             report.append({"segment": s.id, "family": "none", "reason": f"lies {share:.0%} inside the front of segment "
                            f"{fits[j][0].id}: that front found again", "inside": round(share, 4),
-                           "repeats": fits[j][0].id})
+                           "repeats": fits[j][0].id} | {k: info[k] for k in ("piece", "of") if k in info})
         else:
             kept.append(i)
     keep = set(kept)

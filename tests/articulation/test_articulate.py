@@ -442,6 +442,9 @@ def test_a_front_found_again_inside_a_larger_one_is_dropped_and_reported():
     for other in (below, behind, beside):
         fits = [(seg(0), whole, {}), (seg(1), other, {})]
         assert drop_fronts_inside(fits, 0.8, 0.006, 10.0, []) == fits
+    report = []  # a piece of a cut segment says which
+    drop_fronts_inside([(seg(0), whole, {}), (seg(1), again, {"piece": 1, "of": 2})], 0.8, 0.006, 10.0, report)
+    assert (report[0]["piece"], report[0]["of"], report[0]["repeats"]) == (1, 2, 0)
     with pytest.raises(ConfigError, match="repeat_inside"):
         FrontsConfig(repeat_inside=0.5)
     assert FrontsConfig(repeat_inside=0).repeat_inside == 0
