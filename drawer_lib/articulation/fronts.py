@@ -241,7 +241,7 @@ def edge_moves(before: Front, after: Front) -> dict[str, float]:
 
 def share_edges(fronts: list[Front], max_gap: float, plane_tol: float = 0.006, min_overlap: float = 0.5,
                 max_angle_deg: float = 10.0, max_cross: float = 0.0,
-                points: list[Float[np.ndarray, "P 3"] | None] | None = None, pct: float = 2.0) -> list[Front]:
+                points: list[Float[np.ndarray, "_ 3"] | None] | None = None, pct: float = 2.0) -> list[Front]:
     """Fronts whose facing edges abut (:func:`abutting_edges`) have one boundary, estimated
     independently from each front's masks: both edges move to the midpoint of the two estimates
     (the mean of the midpoints when an edge has several neighbours), halving the variance of a
