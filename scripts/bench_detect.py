@@ -19,7 +19,7 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split train --kitchens 16 17 18 19    # train kitchens the detector did not fit
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
     python scripts/bench_detect.py --split train --tag mw1 --set decompose.missing_weight=1   # a variant, same detections
-    python scripts/bench_detect.py --split train --tag flip --set detect.builtin.flip=true    # a variant with its own detections
+    python scripts/bench_detect.py --split train --tag me0 --set detect.builtin.merge_edge=0  # a variant with its own detections
     python scripts/bench_detect.py --split hand --kitchens 0 1 2 3 --detect capture builtin   # kitchens written by hand
     python scripts/bench_detect.py --split train --kitchens 16 17 --layout 'module_widths=[0.3, 0.35]' --out DIR
         # a stress variant: the same kitchens with narrower fronts (built apart, in DIR)

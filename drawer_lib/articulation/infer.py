@@ -108,10 +108,10 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                     | ({"mesh_cuts": cuts} if cuts else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
+    plane_tol = 0.75 * cfg.joints.sliding_step[0]  # coplanar: closer than the nearest sliding track
     if fc.repeat_inside > 0:
-        fits = drop_fronts_inside(fits, fc.repeat_inside, 0.75 * cfg.joints.sliding_step[0], fc.shared_edge_angle_deg,
-                                  report)
-    fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=0.75 * cfg.joints.sliding_step[0],
+        fits = drop_fronts_inside(fits, fc.repeat_inside, plane_tol, fc.shared_edge_angle_deg, report)
+    fronts = share_edges([f for _, f, _ in fits], fc.shared_edge_gap, plane_tol=plane_tol,
                          min_overlap=fc.shared_edge_overlap, max_angle_deg=fc.shared_edge_angle_deg,
                          max_cross=fc.shared_edge_cross, pct=fc.extent_percentile,
                          points=[piece_points(centres[s.faces], f, "piece" in info) for s, f, info in fits])

@@ -415,8 +415,9 @@ def test_coplanar_fronts_that_run_into_each_other_share_one_edge_where_their_sur
 def test_a_front_found_again_inside_a_larger_one_is_dropped_and_reported():
     """A 0.11 m drawer's rectangle inside a 0.25 m drawer's (the same front found twice, from
     masks over part of it): the smaller goes, whichever order the fits come in, and the report
-    names the front it repeats with the share inside. A neighbour that runs 0.3 into it, a panel
-    a track behind, a smaller front beside it and the rule turned off keep every front."""
+    names the front it repeats with the share inside (and, for a piece of a cut segment, which
+    piece). A neighbour that runs 0.3 into it, a panel a track behind and a smaller front beside
+    it keep every front; the config takes 0 (off) or a share above one half."""
     from drawer_lib.articulation.fronts import share_inside
     from drawer_lib.articulation.infer import drop_fronts_inside
     from drawer_lib.io.parts import Front
