@@ -53,7 +53,8 @@ def main() -> None:
     ap.add_argument("--split", default="train", choices=["train", "test"])
     ap.add_argument("--kitchens", type=int, nargs="+", default=list(range(16, 32)))
     ap.add_argument("--every", type=int, default=3, help="every n-th view of each kitchen's camera path")
-    ap.add_argument("--weights", type=Path, default=BenchPaths(ROOT / "bench").detector_weights)
+    ap.add_argument("--weights", type=Path, nargs="+", default=[BenchPaths(ROOT / "bench").detector_weights],
+                    help="the detector stage's weights; several files: their fits as one ensemble")
     ap.add_argument("--variant", action="append", default=None, metavar="'KEY=VALUE ...'",
                     help="detect.builtin keys over conf/detect's (repeat; '' is the configured decoding)")
     ap.add_argument("--iou", type=float, default=0.5)
@@ -61,8 +62,9 @@ def main() -> None:
     cfg = compose_config(ROOT / "conf", ["scene=kitchen_small"])
     base = to_typed(BuiltinDetectConfig, cfg.detect.builtin, "detect.builtin")
     variants = [(v, parse_variant(v, base)) for v in (a.variant or [""])]
-    if not a.weights.is_file():
-        raise SystemExit(f"error: {a.weights}: the built-in detector's weights are missing (run `dvc repro detector`)")
+    for w in a.weights:
+        if not w.is_file():
+            raise SystemExit(f"error: {w}: the built-in detector's weights are missing (run `dvc repro detector`)")
     model, _ = load_detector(a.weights)
     render = to_typed(RenderConfig, cfg.capture.render, "capture.render")
     edge_px = to_typed(DetectorTrainConfig, cfg.detector, "detector").edge_px

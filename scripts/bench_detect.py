@@ -80,14 +80,16 @@ def variant(model: str, tag: str) -> str:
     return f"{model}-{tag}" if tag else model
 
 
-def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
+def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path],
             decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "",
-            layout: dict | None = None) -> dict:
+            layout: dict | None = None, own_detect: bool = False) -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
     weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior.
     ``overrides``: Hydra overrides of detect, decompose and articulate; ``tag``: their outputs
     go to ``by_detector/<model>-<tag>/``, reading the detections of ``by_detector/<model>/``
-    unless ``overrides`` change ``detect.*`` (then the variant's own detections, there).
+    unless ``overrides`` change ``detect.*`` or ``own_detect`` (other detector weights) is set
+    (then the variant's own detections, there). ``weights``: the built-in detector's files (more
+    than one: their fits as one ensemble).
     ``layout``: keys of the kitchen's layout block over the split's (a stress variant of the
     split: other widths, handle styles); recorded in ``layout.json`` beside the kitchen, and a
     kitchen built with other keys is not reused."""
@@ -112,7 +114,7 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: Path,
             r.metrics.update(run_mesh(to_typed(MeshConfig, cfg.mesh, "mesh"), load_field(sp.field), cap, r))
     cap = load_capture(sp.capture, check_files=False)
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
-    own_detect = any(o.lstrip("+~").startswith("detect.") for o in overrides)
+    own_detect = own_detect or any(o.lstrip("+~").startswith("detect.") for o in overrides)
     row = {"kitchen": k}
     for model in models:
         v = ScenePaths(sp.root / "by_detector", variant(model, tag))  # decompose, articulate
@@ -213,8 +215,10 @@ def main() -> None:
     ap.add_argument("--split", default="test", choices=list(SPLITS))
     ap.add_argument("--kitchens", type=int, nargs="+", default=None, help="default: 0 .. 19 (hand: its 8)")
     ap.add_argument("--detect", nargs="+", default=["capture", "builtin", "none"])
-    ap.add_argument("--weights", type=Path, default=BenchPaths(ROOT / "bench").detector_weights,
-                    help="the built-in detector's weights (the detector stage's output)")
+    ap.add_argument("--weights", type=Path, nargs="+", default=[BenchPaths(ROOT / "bench").detector_weights],
+                    help="the built-in detector's weights (the detector stage's output); several files: their "
+                    "fits as one ensemble (mean class probabilities). Other than the default, a --tag's "
+                    "variant runs its own detections")
     ap.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2)))
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_detect"))
     ap.add_argument("--decisions", default="prior", choices=["prior", "fitted"],
@@ -245,13 +249,16 @@ def main() -> None:
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
     check_built(a.out, a.split, a.kitchens, layout)
-    if "builtin" in a.detect and not a.weights.is_file():
-        raise SystemExit(f"error: {a.weights}: the built-in detector's weights are missing (run `dvc repro detector`)")
+    for w in a.weights if "builtin" in a.detect else []:
+        if not w.is_file():
+            raise SystemExit(f"error: {w}: the built-in detector's weights are missing (run `dvc repro detector`)")
+    weights = [w.resolve() for w in a.weights]
+    own_weights = weights != [BenchPaths(ROOT / "bench").detector_weights.resolve()]
     fitted, fit_rec = (fit_per_model(a.detect, a.out, a.fit_kitchens, tuple(a.set), a.tag) if a.decisions == "fitted"
                        else (None, None))
     with ProcessPoolExecutor(a.jobs) as ex:
-        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, a.weights.resolve(), fitted, tuple(a.set), a.tag,
-                           layout)
+        futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, weights, fitted, tuple(a.set), a.tag,
+                          layout, own_weights and bool(a.tag))
                 for k in a.kitchens]
         rows = []
         for f in futs:
@@ -261,6 +268,7 @@ def main() -> None:
                 f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
                 f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
     summ = {"split": a.split, "kitchens": a.kitchens, "layout": layout, "weights": a.decisions, "fit": fit_rec, "set": a.set,
+            "detector_weights": [str(w) for w in weights],
             "by_model": summarise(rows, a.detect), "rows": rows}
     (a.out / a.split).mkdir(parents=True, exist_ok=True)
     name = "summary" + ("" if a.decisions == "prior" else "-fitted") + (f"-{a.tag}" if a.tag else "") + ".json"

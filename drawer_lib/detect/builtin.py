@@ -5,9 +5,13 @@ fronts apart, a watershed of it from each front's sure interior gives the masks)
 
 It needs no download: the ``detector`` stage trains it on renders of the benchmark's train
 split (:mod:`drawer_lib.detect.train`) and writes ``weights.pt`` (the state dict and the
-architecture's hyper-parameters), an output DVC hashes like any other.
+architecture's hyper-parameters; with ``detector.members`` > 1 the state dicts of that many fits
+from consecutive seeds, whose class probabilities are averaged), an output DVC hashes like any
+other.
 """
 
+import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -70,24 +74,60 @@ def working_shape(H: int, W: int, size: int) -> tuple[int, int]:
     return max(1, round(H * s)), max(1, round(W * s))
 
 
-def save_detector(path: Path, model: TinyUNet, info: dict) -> None:
-    torch.save({"kind": "drawer.builtin_detector/1", "width": model.width, "classes": list(CLASSES),
-                "state_dict": model.state_dict(), "info": info}, path)
+class DetectorEnsemble(nn.Module):
+    """Several fits of :class:`TinyUNet` as one: [B, 3, H, W] -> [B, C, H, W], the log of the
+    members' mean class probabilities, so its softmax is their mean (what ``class_probs`` reads)."""
+
+    def __init__(self, members: Sequence[TinyUNet]):
+        super().__init__()
+        if not members:
+            raise ValueError("DetectorEnsemble: no members")
+        self.members = nn.ModuleList(members)
+
+    def forward(self, x: Float[Tensor, "B 3 H W"]) -> Float[Tensor, "B C H W"]:
+        logp = torch.stack([F.log_softmax(m(x), 1) for m in self.members])
+        return torch.logsumexp(logp, 0) - math.log(len(self.members))
 
 
-def load_detector(path: Path) -> tuple[TinyUNet, dict]:
-    if not path.is_file():
-        raise InputError(f"{path}: the built-in detector's weights are missing (run `dvc repro detector`)")
-    d = torch.load(path, map_location="cpu", weights_only=True)
-    if d.get("kind") != "drawer.builtin_detector/1" or list(d.get("classes", [])) != list(CLASSES):
-        raise InputError(f"{path}: not the built-in detector's weights (kind {d.get('kind')!r})")
-    m = TinyUNet(int(d["width"]))
-    m.load_state_dict(d["state_dict"])
-    return m.eval(), dict(d.get("info", {}))
+def save_detector(path: Path, model: TinyUNet | Sequence[TinyUNet], info: dict) -> None:
+    """One fit: its state dict and width. Several (an ensemble, all of one width): the first as
+    one fit's, all of them under ``members``, so the file is the single fit's when there is one."""
+    members = [model] if isinstance(model, TinyUNet) else list(model)
+    if not members or len({m.width for m in members}) != 1:
+        raise ValueError(f"save_detector: {len(members)} members of widths {sorted({m.width for m in members})}")
+    d = {"kind": "drawer.builtin_detector/1", "width": members[0].width, "classes": list(CLASSES),
+         "state_dict": members[0].state_dict(), "info": info}
+    if len(members) > 1:
+        d["members"] = [m.state_dict() for m in members]
+    torch.save(d, path)
+
+
+def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsemble, dict]:
+    """The network of a weights file, or of several: one fit is a :class:`TinyUNet`; more fits,
+    in one file (``members``) or across files, a :class:`DetectorEnsemble` of all of them in
+    order. ``info`` is the first file's, with ``members`` (the count) when there are several."""
+    paths = [path] if isinstance(path, (str, Path)) else [Path(p) for p in path]
+    if not paths:
+        raise InputError("the built-in detector: no weights file given")
+    members, infos = [], []
+    for p in paths:
+        if not Path(p).is_file():
+            raise InputError(f"{p}: the built-in detector's weights are missing (run `dvc repro detector`)")
+        d = torch.load(p, map_location="cpu", weights_only=True)
+        if d.get("kind") != "drawer.builtin_detector/1" or list(d.get("classes", [])) != list(CLASSES):
+            raise InputError(f"{p}: not the built-in detector's weights (kind {d.get('kind')!r})")
+        for sd in d.get("members", [d["state_dict"]]):
+            m = TinyUNet(int(d["width"]))
+            m.load_state_dict(sd)
+            members.append(m.eval())
+        infos.append(dict(d.get("info", {})))
+    if len(members) == 1:
+        return members[0], infos[0]
+    return DetectorEnsemble(members).eval(), {**infos[0], "members": len(members)}
 
 
 @torch.inference_mode()
-def class_probs(model: TinyUNet, rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[np.ndarray, "C h w"]:
+def class_probs(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[np.ndarray, "C h w"]:
     """Per-class probabilities at the working size (long side ``size``)."""
     H, W = rgb.shape[:2]
     h, w = working_shape(H, W, size)
@@ -201,10 +241,10 @@ def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:
 class BuiltinDetector:
     """The trained network with its decoding, as the ``detect`` stage runs it."""
 
-    def __init__(self, weights: Path, cfg: BuiltinDetectConfig):
+    def __init__(self, weights: Path | Sequence[Path], cfg: BuiltinDetectConfig):
         self.model, self.info = load_detector(weights)
         self.cfg = cfg
-        self.sources = {"weights": str(weights)}
+        self.sources = {"weights": str(weights) if isinstance(weights, (str, Path)) else [str(w) for w in weights]}
 
     def __call__(self, rgb: np.ndarray) -> list[Detection]:
         H, W = rgb.shape[:2]

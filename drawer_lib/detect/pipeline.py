@@ -8,6 +8,7 @@ records that there is nothing. (The ``detector`` stage's fit: :mod:`drawer_lib.d
 
 import shutil
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -56,7 +57,7 @@ def _copy_from_capture(cap: Capture, run: StageRun, stage: str, names: tuple[str
     return modalities, frames
 
 
-def make_detector(cfg: DetectConfig, weights: Path):
+def make_detector(cfg: DetectConfig, weights: Path | Sequence[Path]):
     if cfg.model == "builtin":
         from drawer_lib.detect.builtin import BuiltinDetector
 
@@ -66,8 +67,9 @@ def make_detector(cfg: DetectConfig, weights: Path):
     return OwlSamDetector(cfg)
 
 
-def run_detect(cfg: DetectConfig, cap: Capture, weights: Path, run: StageRun) -> dict:
-    """Detections of every frame of ``cap`` by ``cfg.model``, written into the stage folder;
+def run_detect(cfg: DetectConfig, cap: Capture, weights: Path | Sequence[Path], run: StageRun) -> dict:
+    """Detections of every frame of ``cap`` by ``cfg.model`` (``weights``: the built-in detector's
+    file, or several whose fits are averaged), written into the stage folder;
     returns metrics (and, when the capture has ground truth, the front masks' 2D precision /
     recall against its articulated parts, :func:`_score`)."""
     index = run.out("index")

@@ -11,7 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from drawer_lib.bench.scenes import kitchen_scene
-from drawer_lib.detect.builtin import CLASSES, MEAN, STD, TinyUNet, class_probs, decode_instances, normalise, resize_mask, save_detector, working_shape
+from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, normalise, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
@@ -90,9 +90,10 @@ def class_weights(samples: list[Sample]) -> torch.Tensor:
 
 
 def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, curve: Curve | None = None,
-                 progress: Callable = lambda it, **kw: it) -> tuple[TinyUNet, list[float]]:
+                 progress: Callable = lambda it, **kw: it, curve_extra: dict | None = None
+                 ) -> tuple[TinyUNet, list[float]]:
     """Train a :class:`TinyUNet` on ``samples``; returns it (in eval mode) and the loss of every
-    ``log_every``-th step."""
+    ``log_every``-th step (logged to ``curve`` with the values of ``curve_extra``)."""
     if not samples:
         raise InputError("detector: no training views (detector.kitchens rendered nothing)")
     torch.manual_seed(seed)
@@ -115,11 +116,11 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
         if step % cfg.log_every == 0 or step == cfg.steps:
             losses.append(loss.item())
             if curve is not None:
-                curve.log(step, loss=losses[-1])
+                curve.log(step, loss=losses[-1], **(curve_extra or {}))
     return model.eval(), losses
 
 
-def score_views(model: TinyUNet, views: list[View], dc: BuiltinDetectConfig, iou: float) -> dict:
+def score_views(model: TinyUNet | DetectorEnsemble, views: list[View], dc: BuiltinDetectConfig, iou: float) -> dict:
     """2D instance precision / recall of the detector's fronts over ``views`` (at the views' size)."""
     return score_probs([(class_probs(model, v.rgb, dc.working_size), v.fronts) for v in views], dc, iou)
 
@@ -138,7 +139,7 @@ def score_probs(views: list[tuple[np.ndarray, np.ndarray]], dc: BuiltinDetectCon
             "views": len(views), "fronts_true": n_true, "fronts_pred": n_pred, "fronts_matched": tp}
 
 
-def pixel_accuracy(model: TinyUNet, samples: list[Sample]) -> float:
+def pixel_accuracy(model: TinyUNet | DetectorEnsemble, samples: list[Sample]) -> float:
     with torch.inference_mode():
         ok = n = 0
         for s in samples:
@@ -150,9 +151,11 @@ def pixel_accuracy(model: TinyUNet, samples: list[Sample]) -> float:
 
 def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, seed: int,
                        run: StageRun) -> dict:
-    """Render the train split's kitchens ``cfg.kitchens``, fit the built-in detector, write
-    ``weights.pt`` and ``curve.csv`` (loss against time), and score it on the train views and
-    on the test split's kitchens ``cfg.eval_kitchens``."""
+    """Render the train split's kitchens ``cfg.kitchens``, fit the built-in detector (``cfg.members``
+    fits from seeds ``seed``, ``seed + 1``, ...: one ensemble), write ``weights.pt`` and
+    ``curve.csv`` (loss against time; with several fits a ``member`` column), and score it on
+    the train views and on the test split's kitchens ``cfg.eval_kitchens`` (with several fits,
+    each fit on the latter too)."""
     unknown = set(cfg.layout) - LAYOUT_KEYS
     if unknown:
         raise ConfigError(f"detector.layout: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
@@ -171,19 +174,26 @@ def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Rende
     render_s = time.perf_counter() - t0
     samples = [to_sample(v, cfg.working_size) for v in train_views]
     t1 = time.perf_counter()
-    curve = run.curve(["loss"])
-    model, losses = fit_detector(samples, cfg, seed, curve, run.progress)
+    curve = run.curve(["loss"] if cfg.members == 1 else ["member", "loss"])
+    fits = [fit_detector(samples, cfg, seed + k, curve, run.progress, None if cfg.members == 1 else {"member": k})
+            for k in range(cfg.members)]
     train_s = time.perf_counter() - t1
     dc = BuiltinDetectConfig(working_size=cfg.working_size)
-    save_detector(run.dir / bench_name("detector_weights"), model,
+    save_detector(run.dir / bench_name("detector_weights"), [f[0] for f in fits],
                   {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps})
+    model = fits[0][0] if cfg.members == 1 else DetectorEnsemble([f[0] for f in fits]).eval()
     m = {"train_views": len(train_views), "test_views": len(test_views), "render_s": round(render_s, 2),
-         "train_s": round(train_s, 2), "final_loss": round(losses[-1], 4),
+         "train_s": round(train_s, 2), "final_loss": round(float(np.mean([f[1][-1] for f in fits])), 4),
          "pixel_accuracy_train": round(pixel_accuracy(model, samples), 4),
          "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4)}
     for split, vs in (("train", train_views), ("test", test_views)):
         s = score_views(model, vs, dc, cfg.iou_match)
         m[f"fronts_2d_precision_{split}"] = s["precision"]
         m[f"fronts_2d_recall_{split}"] = s["recall"]
+    if cfg.members > 1:
+        m["members"] = cfg.members
+        each = [score_views(f[0], test_views, dc, cfg.iou_match) for f in fits]
+        m["fronts_2d_precision_test_members"] = [s["precision"] for s in each]
+        m["fronts_2d_recall_test_members"] = [s["recall"] for s in each]
     return m
 

@@ -17,7 +17,9 @@ from drawer_lib.detect.builtin import (
     FRONT,
     HANDLE,
     OBJECT,
+    DetectorEnsemble,
     TinyUNet,
+    class_probs,
     decode_instances,
     merge_weak_boundaries,
     normalise,
@@ -126,6 +128,39 @@ def test_network_shapes_weights_file_and_resize(tmp_path):
     assert resize_mask(a, 8, 12)[2:4, 4:6].all() and resize_mask(a, 8, 12).sum() == 4
 
 
+def test_an_ensemble_averages_its_members_probabilities_and_one_fit_keeps_its_file(tmp_path):
+    """Several fits in one file (or across files) load as one network whose class probabilities
+    are the members' mean, checked against each member's softmax averaged by hand; a file of one
+    fit is written as before (no ``members`` key) and loads as that fit."""
+    torch.manual_seed(0)
+    a, b, c = TinyUNet(8).eval(), TinyUNet(8).eval(), TinyUNet(8).eval()
+    save_detector(tmp_path / "one.pt", a, {"note": 1})
+    assert "members" not in torch.load(tmp_path / "one.pt", weights_only=True)
+    save_detector(tmp_path / "two.pt", [a, b], {"note": 2})
+    save_detector(tmp_path / "c.pt", c, {"note": 3})
+    rgb = np.random.default_rng(0).integers(0, 256, (30, 41, 3), dtype=np.uint8)
+    x = normalise(rgb)[None]
+    for files, members in (([tmp_path / "two.pt"], [a, b]), ([tmp_path / "two.pt", tmp_path / "c.pt"], [a, b, c])):
+        ens, info = load_detector(files)
+        assert isinstance(ens, DetectorEnsemble) and info == {"note": 2, "members": len(members)}
+        with torch.no_grad():
+            ref = torch.stack([torch.softmax(m(x)[0].double(), 0) for m in members]).mean(0)
+        got = class_probs(ens, rgb, 41)
+        assert got.shape == (len(CLASSES), 30, 41) and np.allclose(got, ref.numpy(), atol=1e-5)
+        assert np.allclose(got.sum(0), 1, atol=1e-5)
+    single, info = load_detector([tmp_path / "one.pt"])
+    assert isinstance(single, TinyUNet) and info == {"note": 1}
+    assert np.array_equal(class_probs(single, rgb, 41), class_probs(a, rgb, 41))
+    with pytest.raises(ValueError, match="widths"):
+        save_detector(tmp_path / "mixed.pt", [a, TinyUNet(16)], {})
+    with pytest.raises(InputError, match="none.pt.*dvc repro detector"):
+        load_detector([tmp_path / "one.pt", tmp_path / "none.pt"])
+    with pytest.raises(InputError, match="no weights file"):
+        load_detector([])
+    with pytest.raises(ConfigError, match="detector.members = 0"):
+        DetectorTrainConfig(members=0)
+
+
 def test_crop_augmentation_keeps_labels_on_their_pixels():
     """Colour jitter changes pixels, never classes; scale jitter resizes both alike: a class
     boundary stays where the image's step is, and padding is ignored (-100)."""
@@ -213,6 +248,18 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     assert m["train_views"] == 3 and m["test_views"] == 3 and m["wall_s"] > 0
     assert {"fronts_2d_precision_test", "fronts_2d_recall_test", "pixel_accuracy_test"} <= set(m)
     assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,loss"
+    # two fits: the first is the one above (same seed), the second from the next seed; one file
+    r = run_stage("detector", tmp_path / "two", *short, "detector.members=2")
+    assert r.returncode == 0, r.stderr[-3000:]
+    d2 = tmp_path / "two" / "bench" / "detector"
+    m2 = json.loads((d2 / "metrics.json").read_text())
+    assert m2["members"] == 2 and len(m2["fronts_2d_recall_test_members"]) == 2
+    rows = (d2 / "curve.csv").read_text().splitlines()
+    assert rows[0] == "step,wall_s,member,loss" and [r.split(",")[2] for r in rows[1:]] == ["0", "0", "1", "1"]
+    one, two = (torch.load(p / "weights.pt", weights_only=True) for p in (d, d2))
+    assert len(two["members"]) == 2 and all(torch.equal(one["state_dict"][k], two["members"][0][k]) for k in one["state_dict"])
+    assert not all(torch.equal(two["members"][0][k], two["members"][1][k]) for k in one["state_dict"])
+    assert isinstance(load_detector(d2 / "weights.pt")[0], DetectorEnsemble)
     sp = scene_paths(tmp_path)
     shutil.copytree(exact_capture[0], sp.capture)
     r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.builtin.min_score=0.0", "detect.builtin.min_area_px=1")
