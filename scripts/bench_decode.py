@@ -26,7 +26,7 @@ from drawer_lib.detect.builtin import class_probs, load_detector
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import render_views
 from drawer_lib.detect.train import score_probs
-from drawer_lib.errors import ConfigError
+from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.paths import BenchPaths
 from drawer_lib.synth.config import RenderConfig
 
@@ -62,10 +62,10 @@ def main() -> None:
     cfg = compose_config(ROOT / "conf", ["scene=kitchen_small"])
     base = to_typed(BuiltinDetectConfig, cfg.detect.builtin, "detect.builtin")
     variants = [(v, parse_variant(v, base)) for v in (a.variant or [""])]
-    for w in a.weights:
-        if not w.is_file():
-            raise SystemExit(f"error: {w}: the built-in detector's weights are missing (run `dvc repro detector`)")
-    model, _ = load_detector(a.weights)
+    try:
+        model, _ = load_detector(a.weights)
+    except InputError as e:
+        raise SystemExit(f"error: {e}") from None
     render = to_typed(RenderConfig, cfg.capture.render, "capture.render")
     edge_px = to_typed(DetectorTrainConfig, cfg.detector, "detector").edge_px
     scene = OmegaConf.to_container(cfg.scene, resolve=True)

@@ -102,16 +102,21 @@ def save_detector(path: Path, model: TinyUNet | Sequence[TinyUNet], info: dict) 
     torch.save(d, path)
 
 
+def weight_files(path: Path | Sequence[Path]) -> list[Path]:
+    """One weights file or several, as a list."""
+    return [Path(path)] if isinstance(path, (str, Path)) else [Path(p) for p in path]
+
+
 def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsemble, dict]:
     """The network of a weights file, or of several: one fit is a :class:`TinyUNet`; more fits,
     in one file (``members``) or across files, a :class:`DetectorEnsemble` of all of them in
     order. ``info`` is the first file's, with ``members`` (the count) when there are several."""
-    paths = [path] if isinstance(path, (str, Path)) else [Path(p) for p in path]
+    paths = weight_files(path)
     if not paths:
         raise InputError("the built-in detector: no weights file given")
     members, infos = [], []
     for p in paths:
-        if not Path(p).is_file():
+        if not p.is_file():
             raise InputError(f"{p}: the built-in detector's weights are missing (run `dvc repro detector`)")
         d = torch.load(p, map_location="cpu", weights_only=True)
         if d.get("kind") != "drawer.builtin_detector/1" or list(d.get("classes", [])) != list(CLASSES):
@@ -244,7 +249,8 @@ class BuiltinDetector:
     def __init__(self, weights: Path | Sequence[Path], cfg: BuiltinDetectConfig):
         self.model, self.info = load_detector(weights)
         self.cfg = cfg
-        self.sources = {"weights": str(weights) if isinstance(weights, (str, Path)) else [str(w) for w in weights]}
+        files = [str(w) for w in weight_files(weights)]
+        self.sources = {"weights": files[0] if len(files) == 1 else files}
 
     def __call__(self, rgb: np.ndarray) -> list[Detection]:
         H, W = rgb.shape[:2]

@@ -177,13 +177,14 @@ def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Rende
     curve = run.curve(["loss"] if cfg.members == 1 else ["member", "loss"])
     fits = [fit_detector(samples, cfg, seed + k, curve, run.progress, None if cfg.members == 1 else {"member": k})
             for k in range(cfg.members)]
+    nets = [net for net, _ in fits]
     train_s = time.perf_counter() - t1
     dc = BuiltinDetectConfig(working_size=cfg.working_size)
-    save_detector(run.dir / bench_name("detector_weights"), [f[0] for f in fits],
+    save_detector(run.dir / bench_name("detector_weights"), nets,
                   {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps})
-    model = fits[0][0] if cfg.members == 1 else DetectorEnsemble([f[0] for f in fits]).eval()
+    model = nets[0] if cfg.members == 1 else DetectorEnsemble(nets).eval()
     m = {"train_views": len(train_views), "test_views": len(test_views), "render_s": round(render_s, 2),
-         "train_s": round(train_s, 2), "final_loss": round(float(np.mean([f[1][-1] for f in fits])), 4),
+         "train_s": round(train_s, 2), "final_loss": round(float(np.mean([losses[-1] for _, losses in fits])), 4),
          "pixel_accuracy_train": round(pixel_accuracy(model, samples), 4),
          "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4)}
     for split, vs in (("train", train_views), ("test", test_views)):
@@ -192,7 +193,7 @@ def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Rende
         m[f"fronts_2d_recall_{split}"] = s["recall"]
     if cfg.members > 1:
         m["members"] = cfg.members
-        each = [score_views(f[0], test_views, dc, cfg.iou_match) for f in fits]
+        each = [score_views(net, test_views, dc, cfg.iou_match) for net in nets]
         m["fronts_2d_precision_test_members"] = [s["precision"] for s in each]
         m["fronts_2d_recall_test_members"] = [s["recall"] for s in each]
     return m
