@@ -80,6 +80,8 @@ BENCH = {
     "rows": "rows.json",  # in eval/<split>/: each kitchen's scores
     "detector": "detector",  # the built-in 2D detector trained on the train split's renders
     "detector_weights": "detector/weights.pt",
+    "detector_fits": "detector_fits",  # one folder per fit: <seed>/ with weights.pt, curve.csv, metrics.json
+    "detector_fit_weights": "weights.pt",  # in detector_fits/<seed>/
 }
 
 CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
@@ -192,6 +194,11 @@ class BenchPaths:
     @property
     def detector_weights(self) -> Path:
         return Path(self.root) / BENCH["detector_weights"]
+
+    def detector_fit(self, seed: int) -> Path:
+        """One fit of the built-in detector: ``detector_fits/<seed>/`` (its ``weights.pt``,
+        ``curve.csv``, ``metrics.json``); the ``detector`` stage averages the listed seeds' fits."""
+        return Path(self.root) / BENCH["detector_fits"] / str(int(seed))
 
     def eval(self, split: str) -> Path:
         """The evaluation of ``split``: ``eval/<split>/`` (its table, ``metrics.json``, rows and

@@ -109,3 +109,18 @@ def test_the_check_sees_function_level_imports():
     """The appearance stage reaches drawer_lib/sdf only through an import inside a function."""
     files = _closure({_module_file("stages.appearance")})
     assert LIB / "sdf" / "io.py" in files
+
+
+def test_a_detector_fit_lists_every_detector_key_but_the_seeds():
+    """Each ``detector_fit@<seed>`` depends on the detector's keys one by one, all but
+    ``detector.seeds``: adding a seed must not refit the others, and a key left off the list
+    would let a changed setting keep a stale fit."""
+    from dataclasses import fields
+
+    from drawer_lib.detect.config import DetectorTrainConfig
+
+    params = _stages()["detector_fit"]["params"]
+    listed = {p.split(".", 1)[1] for p in params if isinstance(p, str) and p.startswith("detector.")}
+    assert listed == {f.name for f in fields(DetectorTrainConfig)} - {"seeds"}
+    assert "detector" not in params and "seed" not in params  # the seed is the stage's own (its cmd)
+    assert "${item}" in _stages()["detector_fit"]["cmd"]

@@ -112,9 +112,10 @@ class DetectorTrainConfig:
     keys of the kitchens' ``layout`` block (:class:`~drawer_lib.synth.config.LayoutConfig`)
     merged over each fit kitchen's, never over the kitchens it is scored on: domain
     randomisation, the fit drawing sizes and handle rates the train split does not (its keys
-    are checked when the fit starts, :func:`drawer_lib.detect.train.run_train_detector`).
-    ``members``: that many fits, from the run's seed and the ones after it, written as one
-    ensemble whose class probabilities are their mean (the time grows with the count)."""
+    are checked when the fit starts, :func:`drawer_lib.detect.train.run_fit_detector`).
+    ``seeds``: one fit from each seed (the ``detector_fit@<seed>`` stage each, cached apart, so
+    adding a seed fits only that one), averaged as one ensemble whose class probabilities are
+    their mean (the ``detector`` stage); a fit reads only its own seed, never this list."""
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
@@ -131,13 +132,14 @@ class DetectorTrainConfig:
     log_every: int = 100
     iou_match: float = 0.5
     layout: dict[str, Any] = field(default_factory=dict)
-    members: int = 1
+    seeds: list[int] = field(default_factory=lambda: [0])
 
     def __post_init__(self):
         if not self.kitchens:
             raise ConfigError("detector.kitchens: at least one train kitchen is needed")
-        if not 1 <= self.members <= 8:
-            raise ConfigError(f"detector.members = {self.members}: must be in [1, 8] (each is a fit of its own)")
+        seeds = list(self.seeds)
+        if not 1 <= len(seeds) <= 8 or len(set(seeds)) != len(seeds) or min(seeds, default=0) < 0:
+            raise ConfigError(f"detector.seeds = {seeds}: 1 to 8 distinct seeds >= 0 are needed (each is a fit of its own)")
         if not 0 <= self.color_jitter < 2:
             raise ConfigError(f"detector.color_jitter = {self.color_jitter}: must be in [0, 2)")
         if not 1 <= self.scale_jitter <= 4:

@@ -1,22 +1,28 @@
-"""The built-in detector's fit (the ``detector`` stage): views of the train split's kitchens,
-Adam on random crops with class-balanced cross-entropy, then the 2D instance precision and recall
-of its fronts on the test split's kitchens, which it never saw."""
+"""The built-in detector's fit (the ``detector_fit@<seed>`` stages): views of the train split's
+kitchens, Adam on random crops with class-balanced cross-entropy, then the 2D instance precision
+and recall of its fronts on the test split's kitchens, which it never saw; and the fits of
+``detector.seeds`` as the one detector later stages read (the ``detector`` stage)."""
 
+import json
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+from omegaconf import OmegaConf
 
 from drawer_lib.bench.scenes import kitchen_scene
-from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, normalise, resize_mask, save_detector, working_shape
+from drawer_lib.config.typed import to_typed
+from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, load_detector, normalise, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.metrics.detections import match_fronts
-from drawer_lib.paths import bench_name
+from drawer_lib.paths import BENCH, LAYOUT, bench_name
 from drawer_lib.runner import Curve, StageRun
 from drawer_lib.synth.config import LAYOUT_KEYS, RenderConfig
 
@@ -90,10 +96,9 @@ def class_weights(samples: list[Sample]) -> torch.Tensor:
 
 
 def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, curve: Curve | None = None,
-                 progress: Callable = lambda it, **kw: it, curve_extra: dict | None = None
-                 ) -> tuple[TinyUNet, list[float]]:
+                 progress: Callable = lambda it, **kw: it) -> tuple[TinyUNet, list[float]]:
     """Train a :class:`TinyUNet` on ``samples``; returns it (in eval mode) and the loss of every
-    ``log_every``-th step (logged to ``curve`` with the values of ``curve_extra``)."""
+    ``log_every``-th step (logged to ``curve``)."""
     if not samples:
         raise InputError("detector: no training views (detector.kitchens rendered nothing)")
     torch.manual_seed(seed)
@@ -116,7 +121,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
         if step % cfg.log_every == 0 or step == cfg.steps:
             losses.append(loss.item())
             if curve is not None:
-                curve.log(step, loss=losses[-1], **(curve_extra or {}))
+                curve.log(step, loss=losses[-1])
     return model.eval(), losses
 
 
@@ -149,52 +154,94 @@ def pixel_accuracy(model: TinyUNet | DetectorEnsemble, samples: list[Sample]) ->
     return ok / max(n, 1)
 
 
-def run_train_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, seed: int,
-                       run: StageRun) -> dict:
-    """Render the train split's kitchens ``cfg.kitchens``, fit the built-in detector (``cfg.members``
-    fits from seeds ``seed``, ``seed + 1``, ...: one ensemble), write ``weights.pt`` and
-    ``curve.csv`` (loss against time; with several fits a ``member`` column), and score it on
-    the train views and on the test split's kitchens ``cfg.eval_kitchens`` (with several fits,
-    each fit on the latter too)."""
+def stage_inputs(cfg) -> tuple[DetectorTrainConfig, dict, RenderConfig]:
+    """What the detector's stages read from their Hydra config ``cfg``: the fit's settings
+    (``detector``), the benchmark's base scene (``scene``, resolved) and the renderer's
+    (``capture.render``)."""
+    return (to_typed(DetectorTrainConfig, cfg.detector, "detector"), OmegaConf.to_container(cfg.scene, resolve=True),
+            to_typed(RenderConfig, cfg.capture.render, "capture.render"))
+
+
+def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, split: str, kitchens: list[int],
+               run: StageRun) -> list[View]:
+    """Every ``cfg.frame_every``-th view of ``split``'s kitchens, rendered and labelled (the
+    train split's with ``cfg.layout`` merged over each kitchen's, never the scored ones)."""
+    out = []
+    for k in run.progress(kitchens, desc=f"render {split}", total=len(kitchens)):
+        synth = kitchen_scene(base_scene, split, k, layout=cfg.layout if split == "train" else None).synth
+        frames = list(range(0, synth.camera.n_frames, cfg.frame_every))
+        out += list(render_views(synth, render, frames, cfg.edge_px))
+    return out
+
+
+def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, seed: int,
+                     run: StageRun) -> dict:
+    """One fit of the built-in detector (the ``detector_fit@<seed>`` stage): render the train
+    split's kitchens ``cfg.kitchens``, fit from ``seed``, write ``weights.pt`` and ``curve.csv``
+    (loss against time), and score it on the train views and on the test split's kitchens
+    ``cfg.eval_kitchens``, which it never saw."""
     unknown = set(cfg.layout) - LAYOUT_KEYS
     if unknown:
         raise ConfigError(f"detector.layout: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
-
-    def views(split: str, kitchens: list[int]) -> list:
-        out = []
-        for k in run.progress(kitchens, desc=f"render {split}", total=len(kitchens)):
-            synth = kitchen_scene(base_scene, split, k, layout=cfg.layout if split == "train" else None).synth
-            frames = list(range(0, synth.camera.n_frames, cfg.frame_every))
-            out += list(render_views(synth, render, frames, cfg.edge_px))
-        return out
-
     t0 = time.perf_counter()
-    train_views = views("train", cfg.kitchens)
-    test_views = views("test", cfg.eval_kitchens)
+    train_views = _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
+    test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     render_s = time.perf_counter() - t0
     samples = [to_sample(v, cfg.working_size) for v in train_views]
     t1 = time.perf_counter()
-    curve = run.curve(["loss"] if cfg.members == 1 else ["member", "loss"])
-    fits = [fit_detector(samples, cfg, seed + k, curve, run.progress, None if cfg.members == 1 else {"member": k})
-            for k in range(cfg.members)]
-    nets = [net for net, _ in fits]
+    model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress)
     train_s = time.perf_counter() - t1
     dc = BuiltinDetectConfig(working_size=cfg.working_size)
-    save_detector(run.dir / bench_name("detector_weights"), nets,
+    save_detector(run.dir / BENCH["detector_fit_weights"], model,
                   {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps})
-    model = nets[0] if cfg.members == 1 else DetectorEnsemble(nets).eval()
     m = {"train_views": len(train_views), "test_views": len(test_views), "render_s": round(render_s, 2),
-         "train_s": round(train_s, 2), "final_loss": round(float(np.mean([losses[-1] for _, losses in fits])), 4),
+         "train_s": round(train_s, 2), "final_loss": round(losses[-1], 4),
          "pixel_accuracy_train": round(pixel_accuracy(model, samples), 4),
          "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4)}
     for split, vs in (("train", train_views), ("test", test_views)):
         s = score_views(model, vs, dc, cfg.iou_match)
         m[f"fronts_2d_precision_{split}"] = s["precision"]
         m[f"fronts_2d_recall_{split}"] = s["recall"]
-    if cfg.members > 1:
-        m["members"] = cfg.members
-        each = [score_views(net, test_views, dc, cfg.iou_match) for net in nets]
-        m["fronts_2d_precision_test_members"] = [s["precision"] for s in each]
-        m["fronts_2d_recall_test_members"] = [s["recall"] for s in each]
     return m
 
+
+_RUN_KEYS = ("wall_s", "peak_rss_mb", "threads", "skipped")  # what StageRun adds to every stage's metrics
+
+
+def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, fit_dirs: list[Path],
+                         run: StageRun) -> dict:
+    """The built-in detector the later stages read (the ``detector`` stage): the fits of
+    ``cfg.seeds`` (``fit_dirs``, one ``detector_fit@<seed>`` folder each, in that order) as one
+    ``weights.pt``. One fit: its file, copied byte for byte, and its figures. Several: one
+    ensemble file (:func:`~drawer_lib.detect.builtin.save_detector`), scored again on the test
+    split's kitchens ``cfg.eval_kitchens``, with each fit's own figures beside it. A missing
+    fit, or one fitted with other settings than ``cfg``, is an :class:`InputError` naming it."""
+    if len(fit_dirs) != len(cfg.seeds):
+        raise ValueError(f"run_combine_detector: {len(fit_dirs)} fit folders for detector.seeds = {list(cfg.seeds)}")
+    want = {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps}
+    fits = []
+    for seed, d in zip(cfg.seeds, fit_dirs):
+        w, mp = Path(d) / BENCH["detector_fit_weights"], Path(d) / LAYOUT["metrics"]
+        if not w.is_file() or not mp.is_file():
+            raise InputError(f"{d}: the detector's fit from seed {seed} is missing (run `dvc repro detector_fit@{seed}`)")
+        _, info = load_detector(w)
+        got = {k: info.get(k) for k in want}
+        if got != want:
+            raise InputError(f"{w}: fitted with {got}, but detector.* asks for {want} (run `dvc repro detector_fit@{seed}`)")
+        fits.append((w, json.loads(mp.read_text())))
+    dst = run.dir / bench_name("detector_weights")
+    own = [{k: v for k, v in m.items() if k not in _RUN_KEYS} for _, m in fits]
+    if len(fits) == 1:
+        shutil.copyfile(fits[0][0], dst)
+        return {"seeds": list(cfg.seeds), **own[0]}
+    model, _ = load_detector([w for w, _ in fits])
+    save_detector(dst, list(model.members), {**want, "seeds": list(cfg.seeds)})
+    t0 = time.perf_counter()
+    test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
+    render_s = time.perf_counter() - t0
+    s = score_views(model, test_views, BuiltinDetectConfig(working_size=cfg.working_size), cfg.iou_match)
+    return {"seeds": list(cfg.seeds), "test_views": len(test_views), "render_s": round(render_s, 2),
+            "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4),
+            "fronts_2d_precision_test": s["precision"], "fronts_2d_recall_test": s["recall"],
+            "fronts_2d_precision_test_members": [m.get("fronts_2d_precision_test") for m in own],
+            "fronts_2d_recall_test_members": [m.get("fronts_2d_recall_test") for m in own]}

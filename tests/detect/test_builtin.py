@@ -157,8 +157,9 @@ def test_an_ensemble_averages_its_members_probabilities_and_one_fit_keeps_its_fi
         load_detector([tmp_path / "one.pt", tmp_path / "none.pt"])
     with pytest.raises(InputError, match="no weights file"):
         load_detector([])
-    with pytest.raises(ConfigError, match="detector.members = 0"):
-        DetectorTrainConfig(members=0)
+    for seeds in ([], [0, 0], [-1], list(range(9))):
+        with pytest.raises(ConfigError, match=r"detector.seeds = \["):
+            DetectorTrainConfig(seeds=seeds)
 
 
 def test_crop_augmentation_keeps_labels_on_their_pixels():
@@ -232,34 +233,51 @@ def test_the_fit_kitchens_take_the_layout_keys_and_the_scored_ones_do_not(tmp_pa
     assert fit.module_widths == [0.3, 0.8] and fit.no_handle_p == 0.2
     assert plain.module_widths == [0.5] and plain.no_handle_p == 0.1  # the train split's own rate
     assert fit.carcass_height == plain.carcass_height  # the split's other values stay
-    r = run_stage("detector", tmp_path, "detector.kitchens=[0]", "detector.eval_kitchens=[0]",
+    r = run_stage("detector_fit", tmp_path, "detector.kitchens=[0]", "detector.eval_kitchens=[0]",
                   "+detector.layout.module_width=[0.3]")
     assert r.returncode != 0 and "detector.layout: unknown keys ['module_width']" in r.stderr
-    assert not (tmp_path / "bench" / "detector").exists()
+    assert not (tmp_path / "bench" / "detector_fits" / "0").exists()
 
 
 def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
+    """Fits from seeds 0 and 1 (the detector_fit stage, one folder each); the detector stage
+    makes seed 0 alone the very file of its fit, and seeds [0, 1] one ensemble whose members are
+    those fits bit for bit; a fit that is missing or made with other settings stops it, naming
+    the fit; then the detect stage reads the detector."""
     short = ["detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=6", "detector.log_every=3",
              "detector.frame_every=16", "detector.crop=64", "+detector.layout.no_handle_p=0.5"]
-    r = run_stage("detector", tmp_path, *short)
-    assert r.returncode == 0, r.stderr[-3000:]
-    d = tmp_path / "bench" / "detector"
-    m = json.loads((d / "metrics.json").read_text())
+    fits = tmp_path / "bench" / "detector_fits"
+    for seed in (0, 1):
+        r = run_stage("detector_fit", tmp_path, *short, f"seed={seed}")
+        assert r.returncode == 0, r.stderr[-3000:]
+    m = json.loads((fits / "0" / "metrics.json").read_text())
     assert m["train_views"] == 3 and m["test_views"] == 3 and m["wall_s"] > 0
     assert {"fronts_2d_precision_test", "fronts_2d_recall_test", "pixel_accuracy_test"} <= set(m)
-    assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,loss"
-    # two fits: the first is the one above (same seed), the second from the next seed; one file
-    r = run_stage("detector", tmp_path / "two", *short, "detector.members=2")
+    assert (fits / "0" / "curve.csv").read_text().splitlines()[0] == "step,wall_s,loss"
+    d = tmp_path / "bench" / "detector"
+    r = run_stage("detector", tmp_path, *short, "detector.seeds=[1,2]")
+    assert r.returncode != 0 and "seed 2 is missing" in r.stderr and "dvc repro detector_fit@2" in r.stderr
+    assert not d.exists()
+    r = run_stage("detector", tmp_path, *[a for a in short if "steps" not in a], "detector.steps=7")
+    assert r.returncode != 0 and "'steps': 6" in r.stderr and "'steps': 7" in r.stderr and not d.exists()
+    r = run_stage("detector", tmp_path, *short)  # seeds [0]: the fit itself
     assert r.returncode == 0, r.stderr[-3000:]
-    d2 = tmp_path / "two" / "bench" / "detector"
-    m2 = json.loads((d2 / "metrics.json").read_text())
-    assert m2["members"] == 2 and len(m2["fronts_2d_recall_test_members"]) == 2
-    rows = (d2 / "curve.csv").read_text().splitlines()
-    assert rows[0] == "step,wall_s,member,loss" and [r.split(",")[2] for r in rows[1:]] == ["0", "0", "1", "1"]
-    one, two = (torch.load(p / "weights.pt", weights_only=True) for p in (d, d2))
-    assert len(two["members"]) == 2 and all(torch.equal(one["state_dict"][k], two["members"][0][k]) for k in one["state_dict"])
+    assert (d / "weights.pt").read_bytes() == (fits / "0" / "weights.pt").read_bytes()
+    m1 = json.loads((d / "metrics.json").read_text())
+    assert m1["seeds"] == [0] and m1["fronts_2d_recall_test"] == m["fronts_2d_recall_test"]
+    assert m1["train_views"] == 3 and m1["wall_s"] != m["wall_s"]  # its own run's
+    r = run_stage("detector", tmp_path, *short, "detector.seeds=[0,1]")
+    assert r.returncode == 0, r.stderr[-3000:]
+    m2 = json.loads((d / "metrics.json").read_text())
+    each = [json.loads((fits / s / "metrics.json").read_text())["fronts_2d_recall_test"] for s in ("0", "1")]
+    assert m2["seeds"] == [0, 1] and m2["fronts_2d_recall_test_members"] == each and m2["test_views"] == 3
+    one, other, two = (torch.load(p, weights_only=True) for p in (fits / "0" / "weights.pt", fits / "1" / "weights.pt",
+                                                                  d / "weights.pt"))
+    assert len(two["members"]) == 2 and two["info"]["seeds"] == [0, 1]
+    for k in one["state_dict"]:
+        assert torch.equal(one["state_dict"][k], two["members"][0][k]) and torch.equal(other["state_dict"][k], two["members"][1][k])
     assert not all(torch.equal(two["members"][0][k], two["members"][1][k]) for k in one["state_dict"])
-    assert isinstance(load_detector(d2 / "weights.pt")[0], DetectorEnsemble)
+    assert isinstance(load_detector(d / "weights.pt")[0], DetectorEnsemble)
     sp = scene_paths(tmp_path)
     shutil.copytree(exact_capture[0], sp.capture)
     r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.builtin.min_score=0.0", "detect.builtin.min_area_px=1")
