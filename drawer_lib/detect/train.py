@@ -205,9 +205,6 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     return m
 
 
-_RUN_KEYS = ("wall_s", "peak_rss_mb", "threads", "skipped")  # what StageRun adds to every stage's metrics
-
-
 def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, fit_dirs: list[Path],
                          run: StageRun) -> dict:
     """The built-in detector the later stages read (the ``detector`` stage): the fits of
@@ -230,10 +227,9 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
             raise InputError(f"{w}: fitted with {got}, but detector.* asks for {want} (run `dvc repro detector_fit@{seed}`)")
         fits.append((w, json.loads(mp.read_text())))
     dst = run.dir / bench_name("detector_weights")
-    own = [{k: v for k, v in m.items() if k not in _RUN_KEYS} for _, m in fits]
-    if len(fits) == 1:
+    if len(fits) == 1:  # its figures; this stage's run writes its own wall_s, peak_rss_mb and threads over the fit's
         shutil.copyfile(fits[0][0], dst)
-        return {"seeds": list(cfg.seeds), **own[0]}
+        return {"seeds": list(cfg.seeds), **fits[0][1]}
     model, _ = load_detector([w for w, _ in fits])
     save_detector(dst, list(model.members), {**want, "seeds": list(cfg.seeds)})
     t0 = time.perf_counter()
@@ -243,5 +239,5 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     return {"seeds": list(cfg.seeds), "test_views": len(test_views), "render_s": round(render_s, 2),
             "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4),
             "fronts_2d_precision_test": s["precision"], "fronts_2d_recall_test": s["recall"],
-            "fronts_2d_precision_test_members": [m.get("fronts_2d_precision_test") for m in own],
-            "fronts_2d_recall_test_members": [m.get("fronts_2d_recall_test") for m in own]}
+            "fronts_2d_precision_test_members": [m.get("fronts_2d_precision_test") for _, m in fits],
+            "fronts_2d_recall_test_members": [m.get("fronts_2d_recall_test") for _, m in fits]}
