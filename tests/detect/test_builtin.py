@@ -260,7 +260,7 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     assert not d.exists()
     r = run_stage("detector", tmp_path, *[a for a in short if "steps" not in a], "detector.steps=7")
     assert r.returncode != 0 and "'steps': 6" in r.stderr and "'steps': 7" in r.stderr and not d.exists()
-    r = run_stage("detector", tmp_path, *short)  # seeds [0]: the fit itself
+    r = run_stage("detector", tmp_path, *short, "detector.seeds=[0]")  # one seed: the fit itself
     assert r.returncode == 0, r.stderr[-3000:]
     assert (d / "weights.pt").read_bytes() == (fits / "0" / "weights.pt").read_bytes()
     m1 = json.loads((d / "metrics.json").read_text())
