@@ -174,6 +174,12 @@ def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig,
     return out
 
 
+def fit_info(cfg: DetectorTrainConfig) -> dict:
+    """What a fit's ``weights.pt`` records of the settings it was made with (its ``info``), which
+    the ``detector`` stage holds against ``detector.*`` before using the fit."""
+    return {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps}
+
+
 def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, seed: int,
                      run: StageRun) -> dict:
     """One fit of the built-in detector (the ``detector_fit@<seed>`` stage): render the train
@@ -192,8 +198,7 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress)
     train_s = time.perf_counter() - t1
     dc = BuiltinDetectConfig(working_size=cfg.working_size)
-    save_detector(run.dir / BENCH["detector_fit_weights"], model,
-                  {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps})
+    save_detector(run.dir / BENCH["detector_fit_weights"], model, fit_info(cfg))
     m = {"train_views": len(train_views), "test_views": len(test_views), "render_s": round(render_s, 2),
          "train_s": round(train_s, 2), "final_loss": round(losses[-1], 4),
          "pixel_accuracy_train": round(pixel_accuracy(model, samples), 4),
@@ -215,7 +220,7 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     fit, or one fitted with other settings than ``cfg``, is an :class:`InputError` naming it."""
     if len(fit_dirs) != len(cfg.seeds):
         raise ValueError(f"run_combine_detector: {len(fit_dirs)} fit folders for detector.seeds = {list(cfg.seeds)}")
-    want = {"train_kitchens": list(cfg.kitchens), "working_size": cfg.working_size, "steps": cfg.steps}
+    want = fit_info(cfg)
     fits = []
     for seed, d in zip(cfg.seeds, fit_dirs):
         w, mp = Path(d) / BENCH["detector_fit_weights"], Path(d) / LAYOUT["metrics"]
