@@ -111,16 +111,18 @@ def test_the_check_sees_function_level_imports():
     assert LIB / "sdf" / "io.py" in files
 
 
-def test_a_detector_fit_lists_every_detector_key_but_the_seeds():
-    """Each ``detector_fit@<seed>`` depends on the detector's keys one by one, all but
-    ``detector.seeds``: adding a seed must not refit the others, and a key left off the list
-    would let a changed setting keep a stale fit."""
+def test_a_detector_fit_lists_every_detector_key_but_the_seeds_and_the_averaging():
+    """Each ``detector_fit@<seed>`` depends on the detector's keys one by one, all but those
+    only the ``detector`` stage reads (``seeds``, ``average_*``): adding a seed or changing the
+    averaging must not refit, and a key left off the list would let a changed setting keep a
+    stale fit."""
     from dataclasses import fields
 
     from drawer_lib.detect.config import DetectorTrainConfig
 
     params = _stages()["detector_fit"]["params"]
     listed = {p.split(".", 1)[1] for p in params if isinstance(p, str) and p.startswith("detector.")}
-    assert listed == {f.name for f in fields(DetectorTrainConfig)} - {"seeds"}
+    assert listed == {f.name for f in fields(DetectorTrainConfig)} - DetectorTrainConfig.NOT_FIT_KEYS
+    assert DetectorTrainConfig.NOT_FIT_KEYS <= {f.name for f in fields(DetectorTrainConfig)}
     assert "detector" not in params and "seed" not in params  # the seed is the stage's own (its cmd)
     assert "${item}" in _stages()["detector_fit"]["cmd"]

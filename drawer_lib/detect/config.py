@@ -2,7 +2,7 @@
 detector's training (conf/detector/). Sizes in pixels."""
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.hub import HubModel
@@ -115,7 +115,14 @@ class DetectorTrainConfig:
     are checked when the fit starts, :func:`drawer_lib.detect.train.run_fit_detector`).
     ``seeds``: one fit from each seed (the ``detector_fit@<seed>`` stage each, cached apart, so
     adding a seed fits only that one), averaged as one ensemble whose class probabilities are
-    their mean (the ``detector`` stage); a fit reads only its own seed, never this list."""
+    their mean (the ``detector`` stage); a fit reads only its own seed, never this list.
+    ``average_steps`` > 0: the ``detector`` stage trains each fit on for that many steps more
+    (Adam afresh, its rate raised linearly to ``average_lr`` over ``average_warmup`` steps, then
+    held) and takes the mean of its weights over every step after the warm-up (stochastic
+    weight averaging: :func:`drawer_lib.detect.train.average_fit`); 0: each fit as it is."""
+
+    # keys only the ``detector`` stage reads, never a fit: changing them must not refit
+    NOT_FIT_KEYS: ClassVar[frozenset[str]] = frozenset({"seeds", "average_steps", "average_lr", "average_warmup"})
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
@@ -133,6 +140,9 @@ class DetectorTrainConfig:
     iou_match: float = 0.5
     layout: dict[str, Any] = field(default_factory=dict)
     seeds: list[int] = field(default_factory=lambda: [0])
+    average_steps: int = 0
+    average_lr: float = 1e-3
+    average_warmup: int = 100
 
     def __post_init__(self):
         if not self.kitchens:
@@ -144,5 +154,10 @@ class DetectorTrainConfig:
             raise ConfigError(f"detector.color_jitter = {self.color_jitter}: must be in [0, 2)")
         if not 1 <= self.scale_jitter <= 4:
             raise ConfigError(f"detector.scale_jitter = {self.scale_jitter}: must be in [1, 4]")
+        if self.average_steps < 0 or self.average_warmup < 0 or 0 < self.average_steps <= self.average_warmup:
+            raise ConfigError(f"detector.average_steps = {self.average_steps}, average_warmup = {self.average_warmup}: "
+                              "need steps >= 0 and 0 <= warmup < steps (steps 0: no averaging)")
+        if not self.average_lr > 0:
+            raise ConfigError(f"detector.average_lr = {self.average_lr}: must be > 0")
         if self.crop > self.working_size:
             raise ConfigError(f"detector.crop = {self.crop} exceeds detector.working_size = {self.working_size}")

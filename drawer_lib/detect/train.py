@@ -3,6 +3,7 @@ kitchens, Adam on random crops with class-balanced cross-entropy, then the 2D in
 and recall of its fronts on the test split's kitchens, which it never saw; and the fits of
 ``detector.seeds`` as the one detector later stages read (the ``detector`` stage)."""
 
+import copy
 import json
 import shutil
 import time
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch.optim.swa_utils import AveragedModel
 from omegaconf import OmegaConf
 
 from drawer_lib.bench.scenes import kitchen_scene
@@ -95,6 +97,20 @@ def class_weights(samples: list[Sample]) -> torch.Tensor:
     return w / w.mean()
 
 
+def _train_step(model: TinyUNet, opt: torch.optim.Optimizer, samples: list[Sample], cfg: DetectorTrainConfig,
+                g: torch.Generator, weight: torch.Tensor, step: int) -> float:
+    """One step of Adam on a batch of crops (:func:`_crop_batch`); returns its loss (a
+    :class:`NonFiniteError` if it is not finite)."""
+    x, y = _crop_batch(samples, cfg.batch, cfg.crop, g, cfg.color_jitter, cfg.scale_jitter)
+    loss = F.cross_entropy(model(x), y, weight=weight, ignore_index=-100)
+    if not torch.isfinite(loss):
+        raise NonFiniteError(f"detector: loss {float(loss)} at step {step}")
+    opt.zero_grad(set_to_none=True)
+    loss.backward()
+    opt.step()
+    return loss.item()
+
+
 def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, curve: Curve | None = None,
                  progress: Callable = lambda it, **kw: it) -> tuple[TinyUNet, list[float]]:
     """Train a :class:`TinyUNet` on ``samples``; returns it (in eval mode) and the loss of every
@@ -110,19 +126,44 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     losses = []
     model.train()
     for step in progress(range(1, cfg.steps + 1), desc="train", total=cfg.steps):
-        x, y = _crop_batch(samples, cfg.batch, cfg.crop, g, cfg.color_jitter, cfg.scale_jitter)
-        loss = F.cross_entropy(model(x), y, weight=weight, ignore_index=-100)
-        if not torch.isfinite(loss):
-            raise NonFiniteError(f"detector: loss {float(loss)} at step {step}")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
+        loss = _train_step(model, opt, samples, cfg, g, weight, step)
         sched.step()
         if step % cfg.log_every == 0 or step == cfg.steps:
-            losses.append(loss.item())
+            losses.append(loss)
             if curve is not None:
-                curve.log(step, loss=losses[-1])
+                curve.log(step, loss=loss)
     return model.eval(), losses
+
+
+def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int,
+                curve: Curve | None = None, progress: Callable = lambda it, **kw: it) -> TinyUNet:
+    """Stochastic weight averaging after a fit (Izmailov et al. 2018; densely, every step, as
+    SWAD, Cha et al. 2021, for unseen domains): ``cfg.average_steps`` further steps on
+    ``samples`` from ``model``'s weights, Adam afresh with its rate raised linearly to
+    ``cfg.average_lr`` over ``cfg.average_warmup`` steps and then held, and the uniform mean of
+    the weights over every step after the warm-up. Returns that mean as a new :class:`TinyUNet`
+    (eval mode; ``model`` is left as it was); its loss every ``log_every``-th step goes to
+    ``curve`` (columns ``seed``, ``loss``)."""
+    if cfg.average_steps <= cfg.average_warmup:
+        raise ValueError(f"average_fit: {cfg.average_steps} steps do not pass the warm-up of {cfg.average_warmup}")
+    if not samples:
+        raise InputError("detector: no training views to average over (detector.kitchens rendered nothing)")
+    g = torch.Generator().manual_seed(seed)
+    net = copy.deepcopy(model).train()
+    avg = AveragedModel(net, use_buffers=True)  # the first update sets it to the weights of that step
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.average_lr)
+    weight = class_weights(samples)
+    for step in progress(range(1, cfg.average_steps + 1), desc=f"average fit {seed}", total=cfg.average_steps):
+        for group in opt.param_groups:
+            group["lr"] = cfg.average_lr * min(1.0, step / max(cfg.average_warmup, 1))
+        loss = _train_step(net, opt, samples, cfg, g, weight, step)
+        if step > cfg.average_warmup:
+            avg.update_parameters(net)
+        if curve is not None and (step % cfg.log_every == 0 or step == cfg.average_steps):
+            curve.log(step, seed=seed, loss=loss)
+    out = TinyUNet(model.width)
+    out.load_state_dict(avg.module.state_dict())
+    return out.eval()
 
 
 def score_views(model: TinyUNet | DetectorEnsemble, views: list[View], dc: BuiltinDetectConfig, iou: float) -> dict:
@@ -214,10 +255,13 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
                          run: StageRun) -> dict:
     """The built-in detector the later stages read (the ``detector`` stage): the fits of
     ``cfg.seeds`` (``fit_dirs``, one ``detector_fit@<seed>`` folder each, in that order) as one
-    ``weights.pt``. One fit: its file, copied byte for byte, and its figures. Several: one
-    ensemble file (:func:`~drawer_lib.detect.builtin.save_detector`), scored again on the test
-    split's kitchens ``cfg.eval_kitchens``, with each fit's own figures beside it. A missing
-    fit, or one fitted with other settings than ``cfg``, is an :class:`InputError` naming it."""
+    ``weights.pt``, each fit's weights averaged over ``cfg.average_steps`` further steps first
+    (:func:`average_fit`, its loss in ``curve.csv``) when that is > 0. One fit, not averaged:
+    its file, copied byte for byte, and its figures. Otherwise one file
+    (:func:`~drawer_lib.detect.builtin.save_detector`; several fits an ensemble), scored again
+    on the test split's kitchens ``cfg.eval_kitchens``, with each fit's own figures beside it.
+    A missing fit, or one fitted with other settings than ``cfg``, is an :class:`InputError`
+    naming it."""
     if len(fit_dirs) != len(cfg.seeds):
         raise ValueError(f"run_combine_detector: {len(fit_dirs)} fit folders for detector.seeds = {list(cfg.seeds)}")
     want = fit_info(cfg)
@@ -232,17 +276,30 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
             raise InputError(f"{w}: fitted with {got}, but detector.* asks for {want} (run `dvc repro detector_fit@{seed}`)")
         fits.append((w, json.loads(mp.read_text())))
     dst = run.dir / bench_name("detector_weights")
-    if len(fits) == 1:  # its figures; this stage's run writes its own wall_s, peak_rss_mb and threads over the fit's
+    curve = run.curve(["seed", "loss"])  # the averaging's loss; only its header when there is none
+    if len(fits) == 1 and not cfg.average_steps:  # its figures; this stage's run writes its own wall_s, peak_rss_mb and threads over the fit's
         shutil.copyfile(fits[0][0], dst)
-        return {"seeds": list(cfg.seeds), **fits[0][1]}
+        return {"seeds": list(cfg.seeds), "average_steps": 0, **fits[0][1]}
     model, _ = load_detector([w for w, _ in fits])
-    save_detector(dst, list(model.members), {**want, "seeds": list(cfg.seeds)})
+    members = [model] if isinstance(model, TinyUNet) else list(model.members)
+    info = {**want, "seeds": list(cfg.seeds)}
+    m = {"seeds": list(cfg.seeds), "average_steps": cfg.average_steps}
+    if cfg.average_steps:
+        t0 = time.perf_counter()
+        samples = [to_sample(v, cfg.working_size) for v in _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)]
+        m["train_views"], m["render_train_s"] = len(samples), round(time.perf_counter() - t0, 2)
+        t1 = time.perf_counter()
+        members = [average_fit(net, samples, cfg, seed, curve, run.progress) for net, seed in zip(members, cfg.seeds)]
+        m["average_s"] = round(time.perf_counter() - t1, 2)
+        info["average"] = {"steps": cfg.average_steps, "lr": cfg.average_lr, "warmup": cfg.average_warmup}
+    save_detector(dst, members[0] if len(members) == 1 else members, info)
+    model = members[0] if len(members) == 1 else DetectorEnsemble(members)
     t0 = time.perf_counter()
     test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
-    render_s = time.perf_counter() - t0
+    m["render_s"] = round(time.perf_counter() - t0, 2)
     s = score_views(model, test_views, BuiltinDetectConfig(working_size=cfg.working_size), cfg.iou_match)
-    return {"seeds": list(cfg.seeds), "test_views": len(test_views), "render_s": round(render_s, 2),
+    return {**m, "test_views": len(test_views),
             "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4),
             "fronts_2d_precision_test": s["precision"], "fronts_2d_recall_test": s["recall"],
-            "fronts_2d_precision_test_members": [m.get("fronts_2d_precision_test") for _, m in fits],
-            "fronts_2d_recall_test_members": [m.get("fronts_2d_recall_test") for _, m in fits]}
+            "fronts_2d_precision_test_members": [f.get("fronts_2d_precision_test") for _, f in fits],
+            "fronts_2d_recall_test_members": [f.get("fronts_2d_recall_test") for _, f in fits]}

@@ -2,6 +2,7 @@
 the network's shapes, its weights file, its fit on a tiny analytic dataset, the 2D matching,
 and the detector and detect stages end to end (a few steps on one train kitchen)."""
 
+import copy
 import json
 import shutil
 
@@ -29,7 +30,7 @@ from drawer_lib.detect.builtin import (
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, _crop_batch, fit_detector, pixel_accuracy
+from drawer_lib.detect.train import Sample, _crop_batch, average_fit, class_weights, fit_detector, pixel_accuracy
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
@@ -188,12 +189,11 @@ def test_crop_augmentation_keeps_labels_on_their_pixels():
         DetectorTrainConfig(scale_jitter=0.5)
 
 
-def test_fit_learns_rectangles_on_a_flat_background():
-    """Bright rectangles (fronts) with a dark one-pixel rim (edges) on grey: a few hundred steps
-    separate them far beyond the majority class's share."""
-    g = np.random.default_rng(0)
+def _rectangles(n: int = 6, seed: int = 0) -> list[Sample]:
+    """Bright rectangles (fronts) with a dark one-pixel rim (edges) on grey, 48² each."""
+    g = np.random.default_rng(seed)
     samples = []
-    for _ in range(6):
+    for _ in range(n):
         y = np.zeros((48, 48), np.int64)
         x = np.full((3, 48, 48), -0.5, np.float32)
         for _ in range(2):
@@ -203,11 +203,63 @@ def test_fit_learns_rectangles_on_a_flat_background():
         x[:, y == FRONT] = 1.0
         x[:, y == EDGE] = -1.5
         samples.append(Sample(torch.as_tensor(x), torch.as_tensor(y)))
+    return samples
+
+
+def test_fit_learns_rectangles_on_a_flat_background():
+    """A few hundred steps separate fronts from edges and background far beyond the majority
+    class's share."""
+    samples = _rectangles()
     cfg = DetectorTrainConfig(width=8, steps=150, batch=4, crop=32, lr=1e-2, log_every=50)
     model, losses = fit_detector(samples, cfg, seed=0)
     assert len(losses) == 3 and losses[-1] < losses[0]
     base = max(float((s.y == FRONT).float().mean()) for s in samples)
     assert pixel_accuracy(model, samples) > max(0.9, base)
+
+
+def test_weight_averaging_is_the_mean_of_the_weights_after_the_warm_up():
+    """average_fit against a slow reference: the same steps taken one by one (the same crops,
+    Adam afresh, the rate warmed up), each step's weights kept after the warm-up and their mean
+    taken; the fit it starts from is left as it was, and the mean is no single step's weights."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=40, batch=4, crop=32, lr=1e-2, log_every=5,
+                              average_steps=12, average_lr=5e-3, average_warmup=4)
+    model, _ = fit_detector(samples, cfg, seed=0)
+    before = {k: v.clone() for k, v in model.state_dict().items()}
+    avg = average_fit(model, samples, cfg, seed=3)
+    assert all(torch.equal(before[k], v) for k, v in model.state_dict().items())
+    assert isinstance(avg, TinyUNet) and not avg.training
+
+    net = copy.deepcopy(model).train()
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.average_lr)
+    g, weight, kept = torch.Generator().manual_seed(3), class_weights(samples), []
+    for step in range(1, cfg.average_steps + 1):
+        opt.param_groups[0]["lr"] = cfg.average_lr * min(1.0, step / cfg.average_warmup)
+        x, y = _crop_batch(samples, cfg.batch, cfg.crop, g)
+        loss = torch.nn.functional.cross_entropy(net(x), y, weight=weight, ignore_index=-100)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if step > cfg.average_warmup:
+            kept.append({k: v.detach().clone() for k, v in net.state_dict().items()})
+    assert len(kept) == 8
+    got = avg.state_dict()
+    for k in got:
+        want = torch.stack([w[k] for w in kept]).mean(0)
+        torch.testing.assert_close(got[k], want, rtol=1e-5, atol=1e-6)
+    assert not torch.allclose(got["head.weight"], kept[-1]["head.weight"])
+    assert not torch.allclose(got["head.weight"], before["head.weight"])
+    assert pixel_accuracy(avg, samples) > 0.9  # still a detector
+
+
+def test_the_averaging_settings_are_checked():
+    DetectorTrainConfig(average_steps=0)  # off: the warm-up is not looked at
+    for kw, what in (({"average_steps": 100}, "average_warmup = 100"), ({"average_steps": -1}, "average_steps = -1"),
+                     ({"average_steps": 200, "average_lr": 0.0}, "average_lr")):
+        with pytest.raises(ConfigError, match=what):
+            DetectorTrainConfig(**kw)
+    with pytest.raises(ValueError, match="warm-up"):
+        average_fit(TinyUNet(8), _rectangles(1), DetectorTrainConfig(average_steps=0), seed=0)
 
 
 def test_match_fronts_counts_each_true_front_once():
@@ -278,6 +330,15 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
         assert torch.equal(one["state_dict"][k], two["members"][0][k]) and torch.equal(other["state_dict"][k], two["members"][1][k])
     assert not all(torch.equal(two["members"][0][k], two["members"][1][k]) for k in one["state_dict"])
     assert isinstance(load_detector(d / "weights.pt")[0], DetectorEnsemble)
+    r = run_stage("detector", tmp_path, *short, "detector.seeds=[0]", "detector.average_steps=4", "detector.average_warmup=1")
+    assert r.returncode == 0, r.stderr[-3000:]  # one fit trained on and its weights averaged
+    avg = torch.load(d / "weights.pt", weights_only=True)
+    assert avg["info"]["average"] == {"steps": 4, "lr": 1e-3, "warmup": 1} and "members" not in avg
+    assert not all(torch.equal(one["state_dict"][k], avg["state_dict"][k]) for k in one["state_dict"])
+    m3 = json.loads((d / "metrics.json").read_text())
+    assert m3["average_steps"] == 4 and m3["train_views"] == 3 and m3["test_views"] == 3
+    assert m3["fronts_2d_recall_test_members"] == each[:1] and "fronts_2d_recall_test" in m3
+    assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,seed,loss"
     sp = scene_paths(tmp_path)
     shutil.copytree(exact_capture[0], sp.capture)
     r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.builtin.min_score=0.0", "detect.builtin.min_area_px=1")
