@@ -1,11 +1,14 @@
 """DVC stage ``detector``: the built-in 2D detector later stages read -> ``<paths.bench>/detector/``
 (``weights.pt``, ``metrics.json``), from the fits of ``detector.seeds``
-(``<paths.bench>/detector_fits/<seed>/``, the ``detector_fit@<seed>`` stages). One seed: that
-fit's file and figures. Several: one ensemble averaging their class probabilities, scored again
-on the test split's kitchens, which no fit saw.
+(``<paths.bench>/detector_fits/<seed>/``, the ``detector_fit@<seed>`` stages), each trained on
+for ``detector.average_steps`` steps and its weights averaged over them (``curve.csv``: that
+loss; 0: the fit as it is). One seed: that network; one seed, not averaged: the fit's very file
+and figures. Several: one ensemble averaging their class probabilities. Scored again on the test
+split's kitchens, which no fit saw.
 
     python -m stages.detector -cn dvc_stage scene=kitchen_small                     # as DVC runs it
     python -m stages.detector scene=kitchen_small 'detector.seeds=[0,1]'            # two fits as one (both fitted first)
+    python -m stages.detector scene=kitchen_small detector.average_steps=0          # the fit as it is, not averaged
 """
 
 import hydra

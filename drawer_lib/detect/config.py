@@ -140,7 +140,7 @@ class DetectorTrainConfig:
     iou_match: float = 0.5
     layout: dict[str, Any] = field(default_factory=dict)
     seeds: list[int] = field(default_factory=lambda: [0])
-    average_steps: int = 0
+    average_steps: int = 1000
     average_lr: float = 1e-3
     average_warmup: int = 100
 

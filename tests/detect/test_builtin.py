@@ -293,11 +293,13 @@ def test_the_fit_kitchens_take_the_layout_keys_and_the_scored_ones_do_not(tmp_pa
 
 def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     """Fits from seeds 0 and 1 (the detector_fit stage, one folder each); the detector stage
-    makes seed 0 alone the very file of its fit, and seeds [0, 1] one ensemble whose members are
-    those fits bit for bit; a fit that is missing or made with other settings stops it, naming
-    the fit; then the detect stage reads the detector."""
+    makes seed 0 alone, not averaged, the very file of its fit, seeds [0, 1] one ensemble whose
+    members are those fits bit for bit, and seed 0 averaged a network of its own; a fit that is
+    missing or made with other settings stops it, naming the fit; then the detect stage reads
+    the detector."""
     short = ["detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=6", "detector.log_every=3",
-             "detector.frame_every=16", "detector.crop=64", "+detector.layout.no_handle_p=0.5"]
+             "detector.frame_every=16", "detector.crop=64", "+detector.layout.no_handle_p=0.5",
+             "detector.average_steps=0"]
     fits = tmp_path / "bench" / "detector_fits"
     for seed in (0, 1):
         r = run_stage("detector_fit", tmp_path, *short, f"seed={seed}")
@@ -310,7 +312,7 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     r = run_stage("detector", tmp_path, *short, "detector.seeds=[1,2]")
     assert r.returncode != 0 and "seed 2 is missing" in r.stderr and "dvc repro detector_fit@2" in r.stderr
     assert not d.exists()
-    r = run_stage("detector", tmp_path, *[a for a in short if "steps" not in a], "detector.steps=7")
+    r = run_stage("detector", tmp_path, *[a for a in short if not a.startswith("detector.steps=")], "detector.steps=7")
     assert r.returncode != 0 and "'steps': 6" in r.stderr and "'steps': 7" in r.stderr and not d.exists()
     r = run_stage("detector", tmp_path, *short, "detector.seeds=[0]")  # one seed: the fit itself
     assert r.returncode == 0, r.stderr[-3000:]
@@ -330,7 +332,7 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
         assert torch.equal(one["state_dict"][k], two["members"][0][k]) and torch.equal(other["state_dict"][k], two["members"][1][k])
     assert not all(torch.equal(two["members"][0][k], two["members"][1][k]) for k in one["state_dict"])
     assert isinstance(load_detector(d / "weights.pt")[0], DetectorEnsemble)
-    r = run_stage("detector", tmp_path, *short, "detector.seeds=[0]", "detector.average_steps=4", "detector.average_warmup=1")
+    r = run_stage("detector", tmp_path, *short[:-1], "detector.seeds=[0]", "detector.average_steps=4", "detector.average_warmup=1")
     assert r.returncode == 0, r.stderr[-3000:]  # one fit trained on and its weights averaged
     avg = torch.load(d / "weights.pt", weights_only=True)
     assert avg["info"]["average"] == {"steps": 4, "lr": 1e-3, "warmup": 1} and "members" not in avg
