@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
-from torch.optim.swa_utils import AveragedModel
 from omegaconf import OmegaConf
+from torch.optim.swa_utils import AveragedModel
 
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.config.typed import to_typed
