@@ -47,9 +47,9 @@ FAST_PARAMS = ["scenes=[kitchen_tiny]", "geometry_variants=[tsdf]", "sdf.neural.
                "robot.max_parts=2", "robot.camera=[0,0]",
                # the benchmark: kitchen 0 of each split, at kitchen_tiny's frames
                "bench.kitchens=[0]", "bench.hand_kitchens=[0]", "bench.camera={n_frames:12,width:96,height:72}",
-               # the built-in detector: a few steps on one train kitchen (its fit: tests/detect)
+               # the built-in detector: a few steps on one train kitchen, a few more averaged (its fit: tests/detect)
                "detector.kitchens=[0]", "detector.eval_kitchens=[0]", "detector.steps=4", "detector.log_every=2",
-               "detector.frame_every=12"]
+               "detector.frame_every=12", "detector.average_steps=3", "detector.average_warmup=1"]
 
 
 def make_repo(tmp_path_factory, params: list[str], prepare=None):
