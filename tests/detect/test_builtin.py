@@ -332,7 +332,8 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
         assert torch.equal(one["state_dict"][k], two["members"][0][k]) and torch.equal(other["state_dict"][k], two["members"][1][k])
     assert not all(torch.equal(two["members"][0][k], two["members"][1][k]) for k in one["state_dict"])
     assert isinstance(load_detector(d / "weights.pt")[0], DetectorEnsemble)
-    r = run_stage("detector", tmp_path, *short[:-1], "detector.seeds=[0]", "detector.average_steps=4", "detector.average_warmup=1")
+    r = run_stage("detector", tmp_path, *[a for a in short if not a.startswith("detector.average_steps=")],
+                  "detector.seeds=[0]", "detector.average_steps=4", "detector.average_warmup=1")
     assert r.returncode == 0, r.stderr[-3000:]  # one fit trained on and its weights averaged
     avg = torch.load(d / "weights.pt", weights_only=True)
     assert avg["info"]["average"] == {"steps": 4, "lr": 1e-3, "warmup": 1} and "members" not in avg
