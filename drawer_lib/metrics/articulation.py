@@ -142,6 +142,40 @@ def part_kind(part: Part | None) -> str:
     return f"{fam}_{side}" if side else fam
 
 
+WRONG_WHY = ("wrong_kind", "off_front", "merged", "no_front")
+TOUCH_IOU = 0.05  # a predicted front overlapping a true one by more than this touches it
+
+
+def wrong_parts(m: Matching) -> list[dict]:
+    """Why each predicted articulated part of the matching ``m`` that precision counts against
+    (not correct, not ignored) is wrong, in the order of ``m.pred``: ``why`` is ``wrong_kind``
+    (matched to a true part at IoU >= IOU_MIN, another joint kind), ``merged`` (unmatched,
+    touching two or more true fronts: IoU > TOUCH_IOU), ``off_front`` (unmatched, touching one:
+    split from it or mis-sized) or ``no_front`` (touching none); with ``pred_kind`` and, for the
+    first three, ``gt_kind`` (:func:`part_kind` names; of the best-overlapping true front when
+    unmatched) and ``iou`` to it."""
+    matched = {i: (j, o) for i, j, o in m.pairs}
+    ignored = set(m.ignored)
+    out = []
+    for i, p in enumerate(m.pred):
+        if i in ignored or (i in matched and p.kind == m.gt[matched[i][0]].kind):
+            continue
+        row = {"pred_kind": part_kind(p)}
+        if i in matched:
+            j, o = matched[i]
+            row.update(why="wrong_kind", gt_kind=part_kind(m.gt[j]), iou=float(o))
+        else:
+            ious = np.array([front_overlap(p.front, g.front) for g in m.gt]) if m.gt else np.zeros(0)
+            touched = int((ious > TOUCH_IOU).sum())
+            if touched == 0:
+                row.update(why="no_front")
+            else:
+                j = int(ious.argmax())
+                row.update(why="merged" if touched > 1 else "off_front", gt_kind=part_kind(m.gt[j]), iou=float(ious[j]))
+        out.append(row)
+    return out
+
+
 def axis_segment(part: Part) -> np.ndarray:
     """[2, 3] the stretch of a part's axis line that spans its front."""
     o, d = np.asarray(part.axis.origin), np.asarray(part.axis.direction)

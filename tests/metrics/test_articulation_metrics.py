@@ -7,7 +7,7 @@ import pytest
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.io.parts import Axis, Front, IgnoreBox, Part, PartsFile
 from drawer_lib.metrics.articulation import (articulation_metrics, clip_convex, convex_iou, ea_pair, front_overlap,
-                                             match_parts, project_segment)
+                                             match_parts, project_segment, wrong_parts)
 
 N = (0.0, -1.0, 0.0)
 U = (1.0, 0.0, 0.0)
@@ -59,6 +59,31 @@ def test_matching_is_one_to_one_and_kind_aware_with_ignore_boxes():
     assert res["n_correct"] == 1 and res["recall"] == 0.5
     assert res["precision"] == pytest.approx(1 / 3)  # a, b, c count; the oven front does not
     assert details[1]["correct"] is False
+
+
+def test_wrong_parts_say_why_each_counted_prediction_is_wrong():
+    """One prediction of each kind of wrong next to a right one and an ignored one: the reasons,
+    the true kind of the front each lies on, and nothing for what precision does not count."""
+    g1, g2, g3, g4 = front(cx=0.0), front(cx=0.6), front(cx=-0.6, w=0.3), front(cx=-1.0, w=0.3)
+    gt = PartsFile((door("d0", g1), door("d1", g2, "prismatic"), door("d2", g3), door("d3", g4)),
+                   (IgnoreBox("oven", ((1.0, -0.7, 0.0), (1.6, -0.5, 1.0))),))
+    pred = PartsFile((door("right", front(cx=0.01)),                    # d0, revolute: correct
+                      door("typed", front(cx=0.6), "prismatic"),        # d1 is prismatic: correct
+                      door("sliding_as_door", front(cx=0.59)),          # second on d1: unmatched, one front
+                      door("merged", front(cx=-0.8, w=0.7)),            # over d2 and d3
+                      door("nowhere", front(cx=0.0, cz=3.0)),           # above every front
+                      door("oven_front", front(cx=1.3))))               # in the ignore box
+    m = match_parts(pred, gt)
+    rows = wrong_parts(m)
+    assert [r["why"] for r in rows] == ["off_front", "merged", "no_front"]
+    assert rows[0]["gt_kind"] == "prismatic" and rows[0]["iou"] == pytest.approx(front_overlap(front(cx=0.59), g2))
+    assert rows[1]["gt_kind"] == "revolute" and "gt_kind" not in rows[2]
+    res, _ = articulation_metrics(pred, gt, [])
+    assert len(rows) == res["n_pred"] - res["n_ignored"] - res["n_correct"]  # what precision counts against
+    swapped = PartsFile((door("as_drawer", front(cx=0.0), "prismatic"),), ())
+    (r,) = wrong_parts(match_parts(swapped, gt))
+    assert r["why"] == "wrong_kind" and r["gt_kind"] == "revolute" and r["pred_kind"] == "prismatic" and r["iou"] == pytest.approx(1.0)
+    assert [r["why"] for r in wrong_parts(match_parts(pred, PartsFile((), ())))] == ["no_front"] * 6  # no ground truth at all
 
 
 def test_ea_score_extremes():
