@@ -15,6 +15,7 @@ import collections
 import json
 from pathlib import Path
 
+from bench_detect import variant  # the folder bench_detect writes a model's parts to
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import WRONG_WHY, match_parts, wrong_parts
 from drawer_lib.paths import ScenePaths, capture_name
@@ -45,7 +46,7 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=10, help="how many (true -> predicted) pairs to list")
     ap.add_argument("--json", type=Path, help="also write every wrong part here")
     a = ap.parse_args()
-    folder = f"{a.model}-{a.tag}" if a.tag else a.model
+    folder = variant(a.model, a.tag)
     everything = []
     for d in a.splits:
         rows = split_rows(d, folder)

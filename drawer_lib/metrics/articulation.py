@@ -155,10 +155,10 @@ def wrong_parts(m: Matching) -> list[dict]:
     first three, ``gt_kind`` (:func:`part_kind` names; of the best-overlapping true front when
     unmatched) and ``iou`` to it."""
     matched = {i: (j, o) for i, j, o in m.pairs}
-    ignored = set(m.ignored)
+    skip = set(m.ignored) | {i for i, _, _ in m.correct}
     out = []
     for i, p in enumerate(m.pred):
-        if i in ignored or (i in matched and p.kind == m.gt[matched[i][0]].kind):
+        if i in skip:
             continue
         row = {"pred_kind": part_kind(p)}
         if i in matched:
