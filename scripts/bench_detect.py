@@ -20,6 +20,8 @@ only, into ``articulate_fitted/``, on the detect and decompose outputs a ``prior
     python scripts/bench_detect.py --split test --decisions fitted --fit-kitchens 16 17 18 19 --detect capture builtin
     python scripts/bench_detect.py --split train --tag mw1 --set decompose.missing_weight=1   # a variant, same detections
     python scripts/bench_detect.py --split train --tag me0 --set detect.builtin.merge_edge=0  # a variant with its own detections
+    python scripts/bench_detect.py --split train --tag hm0 --from-tag swa --set articulate.types.hinged_min_height=null
+        # articulate alone, on the detections and decomposition of the run tagged swa
     python scripts/bench_detect.py --split hand --kitchens 0 1 2 3 --detect capture builtin   # kitchens written by hand
     python scripts/bench_detect.py --split train --kitchens 16 17 --layout 'module_widths=[0.3, 0.35]' --out DIR
         # a stress variant: the same kitchens with narrower fronts (built apart, in DIR)
@@ -82,7 +84,7 @@ def variant(model: str, tag: str) -> str:
 
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path],
             decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "",
-            layout: dict | None = None, own_detect: bool = False) -> dict:
+            layout: dict | None = None, own_detect: bool = False, from_tag: str | None = None) -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
     weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior.
     ``overrides``: Hydra overrides of detect, decompose and articulate; ``tag``: their outputs
@@ -92,7 +94,9 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     than one: their fits as one ensemble).
     ``layout``: keys of the kitchen's layout block over the split's (a stress variant of the
     split: other widths, handle styles); recorded in ``layout.json`` beside the kitchen, and a
-    kitchen built with other keys is not reused."""
+    kitchen built with other keys is not reused. ``from_tag``: read the detections and the
+    decomposition of ``by_detector/<model>-<from_tag>/`` (a run with that tag; ``""``: the untagged
+    run) and rerun articulate alone (``overrides`` then vary articulate only)."""
     import torch
 
     torch.set_num_threads(1)
@@ -119,27 +123,34 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     for model in models:
         v = ScenePaths(sp.root / "by_detector", variant(model, tag))  # decompose, articulate
         d = v if own_detect else ScenePaths(sp.root / "by_detector", model)  # the detections
+        src = v  # the decomposition articulate reads
+        if from_tag is not None:
+            d = src = ScenePaths(sp.root / "by_detector", variant(model, from_tag))
+            if not src.metrics("decompose").is_file():
+                raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {from_tag} first")
         t0 = time.perf_counter()
-        if decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
+        if from_tag is not None:
+            pass  # detect and decompose: read from the run tagged from_tag
+        elif decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
             dc = dataclasses.replace(to_typed(DetectConfig, cfg.detect, "detect"), model=model)
             with stage_run("detect", d.detect, seed) as r:
                 r.metrics.update(run_detect(dc, cap, weights, r))
         elif decisions is not None and not v.metrics("decompose").is_file():
             raise SystemExit(f"error: {v.metrics('decompose')}: missing; run this split with --decisions prior first")
         vcap = apply_overlay(cap, d.file("detect", "index"))
-        if decisions is None:
+        if decisions is None and from_tag is None:
             with stage_run("decompose", v.stage_dir("decompose"), seed) as r:
                 r.metrics.update(run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), vcap, sp.mesh, r))
         art = v.stage_dir("articulate") if decisions is None else v.root / FITTED_DIR
         with stage_run("articulate", art, seed) as r:
-            r.metrics.update(run_articulate(ac, vcap, v.stage_dir("decompose"), r,
+            r.metrics.update(run_articulate(ac, vcap, src.stage_dir("decompose"), r,
                                             weights=ac.types.prior if decisions is None else decisions[model]))
         s = score_kitchen(sp, art / v.parts.name)
         dm = read_json(d.metrics("detect"))
         row[model] = {"precision": s["precision"], "recall": s["recall"], "ea_score": s.get("ea_score"),
                       "n_pred": s["n_pred"] - s["n_ignored"], "n_gt": s["n_gt"], "n_correct": s["n_correct"],
                       "parts_2d_precision": dm.get("parts_2d_precision"), "parts_2d_recall": dm.get("parts_2d_recall"),
-                      "source": read_json(v.metrics("decompose"))["source"], "s": round(time.perf_counter() - t0, 1)}
+                      "source": read_json(src.metrics("decompose"))["source"], "s": round(time.perf_counter() - t0, 1)}
     return row
 
 
@@ -233,6 +244,9 @@ def main() -> None:
     ap.add_argument("--tag", default="", help="write decompose and articulate to by_detector/<model>-TAG/ "
                     "(the detections of by_detector/<model>/ are read unless --set changes detect.*; the summary is "
                     "summary-TAG.json)")
+    ap.add_argument("--from-tag", default=None, metavar="TAG",
+                    help="rerun articulate alone on the detections and decomposition of the run tagged TAG "
+                    "('' for the untagged run); --set may then vary articulate.* only")
     a = ap.parse_args()
     layout = parse_layout(a.layout)
     if a.kitchens is None:
@@ -246,9 +260,21 @@ def main() -> None:
         raise SystemExit(f"error: --set {' '.join(a.set)}: only detect.*, decompose.* and articulate.* keys vary here")
     if any(o.lstrip("+~").startswith("detect.model") for o in a.set):
         raise SystemExit("error: --set detect.model: the models are --detect's")
+    if a.from_tag is not None:
+        if not a.tag or a.tag == a.from_tag:
+            raise SystemExit("error: --from-tag needs a --tag of its own, so that the variant does not overwrite the run it reads")
+        if any(not o.split("=")[0].lstrip("+~").startswith("articulate.") for o in a.set):
+            raise SystemExit(f"error: --set {' '.join(a.set)}: with --from-tag only articulate.* keys vary (detect and decompose are read)")
+        if a.decisions == "fitted":
+            raise SystemExit("error: --from-tag reruns articulate with the prior weights; --decisions fitted has its own rerun")
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
     check_built(a.out, a.split, a.kitchens, layout)
+    for k in a.kitchens if a.from_tag is not None else []:
+        for model in a.detect:
+            src = ScenePaths(a.out / a.split / f"kitchen_{k}" / "by_detector", variant(model, a.from_tag))
+            if not src.metrics("decompose").is_file():
+                raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {a.from_tag} first")
     for w in a.weights if "builtin" in a.detect else []:
         if not w.is_file():
             raise SystemExit(f"error: {w}: the built-in detector's weights are missing (run `dvc repro detector`)")
@@ -258,7 +284,7 @@ def main() -> None:
                        else (None, None))
     with ProcessPoolExecutor(a.jobs) as ex:
         futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, weights, fitted, tuple(a.set), a.tag,
-                          layout, own_weights and bool(a.tag))
+                          layout, own_weights and bool(a.tag), a.from_tag)
                 for k in a.kitchens]
         rows = []
         for f in futs:
@@ -268,6 +294,7 @@ def main() -> None:
                 f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
                 f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
     summ = {"split": a.split, "kitchens": a.kitchens, "layout": layout, "weights": a.decisions, "fit": fit_rec, "set": a.set,
+            "from_tag": a.from_tag,
             "detector_weights": [str(w) for w in weights],
             "by_model": summarise(rows, a.detect), "rows": rows}
     (a.out / a.split).mkdir(parents=True, exist_ok=True)

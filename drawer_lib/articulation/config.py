@@ -242,6 +242,10 @@ class TypesConfig:
     ``parts.json``, listed by the report and marked in the viewer. ``sliding_needs_track``: the
     score rule types a front sliding only when it has a partner on another track or a track
     along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`).
+    ``hinged_min_height`` (m): the score rule types a front shorter than this neither a
+    side-hinged door nor a top-hinged flap (a hinged front needs room for its hinges; kitchen
+    makers' doors and flaps start near 0.3 m, drawers at 0.1 m; a bottom-hinged tilt-out stays
+    possible); null turns this off.
     ``drawer_max_height`` (m): where the score rule's ``tall`` feature starts (a front taller
     than the deepest drawers, which stop near 0.4 m in real kitchens, is a door or a flap).
     ``front_labels``: the labels, besides ``door_labels`` and ``drawer_labels``, a detector
@@ -257,6 +261,7 @@ class TypesConfig:
     filler_width: float | None = 0.25
     low_margin: float = 1.0
     sliding_needs_track: bool = True
+    hinged_min_height: float | None = 0.2
     drawer_max_height: float = 0.45
     edge_frac: float = 0.3
     use_labels: bool = True
@@ -283,6 +288,8 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.low_margin = {self.low_margin} must be >= 0")
         if self.filler_width is not None and not 0 <= self.filler_width < 10:
             raise ConfigError(f"articulate.types.filler_width = {self.filler_width} must be in [0, 10) m or null")
+        if self.hinged_min_height is not None and not 0 <= self.hinged_min_height < 10:
+            raise ConfigError(f"articulate.types.hinged_min_height = {self.hinged_min_height} must be in [0, 10) m or null")
         if not 0 < self.drawer_max_height < 10:
             raise ConfigError(f"articulate.types.drawer_max_height = {self.drawer_max_height} must be in (0, 10) m")
         check_weights(self.prior, "articulate.types.prior")

@@ -80,10 +80,15 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
 def missing_evidence(common: dict[str, float], cfg: TypesConfig) -> dict[str, str]:
     """The hypotheses whose defining evidence the front lacks, with why: with
     ``cfg.sliding_needs_track``, a sliding door needs a partner panel on another track or a
-    track along its top or bottom edge (a high front with side neighbours is not one)."""
+    track along its top or bottom edge (a high front with side neighbours is not one); a front
+    shorter than ``cfg.hinged_min_height`` is neither a side-hinged door nor a top-hinged flap
+    (no room for hinges: a shallow drawer whose pull was found beside its centre is no door)."""
     out = {}
     if cfg.sliding_needs_track and common["partner"] <= 0 and common["rail"] <= 0:
         out["sliding"] = "no partner on another track and no track along an edge"
+    if cfg.hinged_min_height is not None and common["height"] < cfg.hinged_min_height:
+        why = f"{common['height']:.2f} m tall < hinged_min_height {cfg.hinged_min_height} m: no room for hinges"
+        out.update(dict.fromkeys(("door_left", "door_right", "flap_top"), why))
     return out
 
 

@@ -36,6 +36,7 @@ only as features whose weights are fitted.
 | tall | how far the front's height exceeds ``drawer_max_height``, in 10 cm, clipped to [0, 2]: a front taller than the deepest drawers (pan drawers stop near 0.4 m) with a pull at its top is a door or a flap (an oven, a dishwasher, a base door with a top pull) |
 | bare_stack | ``stacked`` when the front has no handle, else 0: a handle-less front in a column of coplanar fronts sharing its top or bottom edge has the gap pattern of a drawer bank (push-to-open) |
 | bare_lone | 1 when the front has no handle, no coplanar front shares its top or bottom edge and it is not *flanked* (the surface running on flush at both sides with gap lines along fewer than two of its sides: a patch of wall; :func:`~drawer_lib.articulation.infer.flanked`): a lone push-to-open door or flap, or a panel that does not move (the interaction test rules out what cannot swing) |
+| bare_tall | min(1, ``tall``) when the front has no handle and a coplanar front shares its top or bottom edge, else 0: a push-to-open door under (or over) a drawer, which ``bare_stack`` would call a drawer were it not taller than drawers are, and ``bare_lone`` does not cover since it has a stacked neighbour (a front sharing an edge with another front is no patch of wall, so ``flanked`` does not turn it off) |
 | h_free, h_hinge | (door only) the handle's closeness to the free / the hinge edge |
 | beside_free, beside_hinge | (door only) a coplanar front shares the free / the hinge edge |
 """
@@ -105,6 +106,7 @@ def features(ev: Evidence, drawer_labels: list[str], door_labels: list[str], use
     f["tall"] = float(np.clip((h - drawer_max_height) / TALL_STEP, 0.0, 2.0))
     f["bare_stack"] = f["stacked"] if hd is None else 0.0
     f["bare_lone"] = 1.0 if hd is None and ev.stacked == 0 and not ev.flanked else 0.0
+    f["bare_tall"] = min(1.0, f["tall"]) if hd is None and ev.stacked > 0 else 0.0
     return f
 
 

@@ -18,7 +18,7 @@ HYPOTHESES = ("drawer", "door_left", "door_right", "flap_top", "flap_bottom", "s
 WEIGHT_SETS = ("drawer", "door", "flap_top", "flap_bottom", "sliding", "fixed")
 COMMON = ("bias", "handle", "h_top", "h_bottom", "h_side", "h_corner", "h_center_u", "h_vertical", "h_horizontal",
           "h_round", "aspect", "width", "height", "z_mid", "stacked", "beside", "partner", "rail", "carcass",
-          "lab_drawer", "lab_door", "support", "tall", "bare_stack", "bare_lone")
+          "lab_drawer", "lab_door", "support", "tall", "bare_stack", "bare_lone", "bare_tall")
 DOOR_ONLY = ("h_free", "h_hinge", "beside_free", "beside_hinge")
 LABEL_FEATURES = ("lab_drawer", "lab_door")  # set by hand: generic detections carry no label to fit them on
 
@@ -42,7 +42,8 @@ def prior_weights() -> dict[str, dict[str, float]]:
     return {
         "drawer": {"handle": 1.0, "h_top": 1.0, "h_center_u": 1.0, "h_horizontal": 0.5, "lab_drawer": 2.0,
                    "tall": -3.0, "bare_stack": 2.0},
-        "door": {"handle": 1.0, "h_free": 2.5, "h_vertical": 0.5, "lab_door": 1.0, "bare_lone": 1.0},
+        "door": {"handle": 1.0, "h_free": 2.5, "h_vertical": 0.5, "lab_door": 1.0, "bare_lone": 1.0,
+                 "bare_tall": 1.0},
         "flap_top": {"handle": 1.0, "h_bottom": 2.0, "h_center_u": 0.5},
         "flap_bottom": {"handle": 1.0, "h_top": 1.0, "lab_door": 1.5},
         "sliding": {"partner": 5.0, "rail": 3.0},

@@ -131,6 +131,23 @@ def push_to_open_door(cfg, w) -> bool:
     return p is not None and p.kind == "revolute"
 
 
+def push_to_open_door_under_drawer(cfg, w) -> bool:
+    """A base unit's door without a handle under a drawer with one is a revolute part: in a
+    stack a front without a handle reads as a push-to-open drawer, but at 0.6 m it is taller
+    than drawers are, so neither a drawer nor a fixed panel."""
+    s = Scene().front(0.0, 0.6, 0.1, 0.7, -0.6).front(0.0, 0.6, 0.703, 0.86, -0.6, (0.3, 0.8, "h", 0.3))
+    (door, drawer), _, _ = s.run(cfg, w)
+    return door is not None and door.kind == "revolute" and _family(drawer, "drawer")
+
+
+def shallow_drawer_off_centre_knob(cfg, w) -> bool:
+    """A drawer 15 cm tall whose knob was found by a side edge (a neighbour's, or a knot in the
+    wood read as one) is still a drawer: a side-hinged door or a top-hinged flap that shallow
+    has no room for its hinges."""
+    (p,), _, _ = Scene().front(0.0, 0.6, 0.7, 0.85, -0.6, (0.55, 0.8, "knob")).run(cfg, w)
+    return _family(p, "drawer")
+
+
 def microwave_door(yaw: float) -> Callable:
     def case(cfg, w) -> bool:
         s = Scene().static([0.0, -0.5, 0.9], [0.5, -0.14, 1.19]).static([-0.3, -0.62, 0.86], [1.0, 0.0, 0.9])
@@ -170,6 +187,8 @@ class Case:
 CASES = (Case("full_height_door", full_height_door), Case("oven_door_top_bar", oven_door_top_bar),
          Case("sliding_without_partner", sliding_without_partner), Case("knobless_drawer_stack", knobless_drawer_stack),
          Case("push_to_open_door", push_to_open_door),
+         Case("push_to_open_door_under_drawer", push_to_open_door_under_drawer),
+         Case("shallow_drawer_off_centre_knob", shallow_drawer_off_centre_knob),
          *(Case(f"microwave_door_yaw_{y:g}", microwave_door(y)) for y in (0.0, 30.0, -40.0)),
          Case("mirrored_wall_doors", mirrored_wall_doors),
          Case("wall_door_bottom_corner_bar", wall_door_bottom_corner_bar))

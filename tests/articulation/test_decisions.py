@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from drawer_lib.articulation.config import ArticulateConfig, JointsConfig, TypesConfig
+from drawer_lib.articulation.decide import decide_by_score
 from drawer_lib.articulation.probes import rail_extent, rail_run
 from drawer_lib.articulation.scoring import Evidence, door_features, features, score
 from drawer_lib.articulation.vocab import COMMON, DOOR_ONLY, HYPOTHESES, WEIGHT_SETS, Handle, prior_weights
@@ -26,7 +27,7 @@ CFG = to_typed(ArticulateConfig, yaml.safe_load((ROOT / "conf/articulate/default
 PRIOR = CFG.types.prior
 PRIOR_PASSES = {"full_height_door", "microwave_door_yaw_0", "microwave_door_yaw_30", "microwave_door_yaw_-40",
                 "mirrored_wall_doors", "oven_door_top_bar", "knobless_drawer_stack", "sliding_without_partner",
-                "push_to_open_door"}
+                "push_to_open_door", "push_to_open_door_under_drawer", "shallow_drawer_off_centre_knob"}
 
 
 def only(hypothesis: str) -> dict[str, dict[str, float]]:
@@ -100,6 +101,47 @@ def test_tall_and_bare_stack_features():
     assert features(ev(0.2, 0, False, flanked=True), [], [], True)["bare_lone"] == 0.0
     with pytest.raises(ConfigError, match="drawer_max_height = 0.0"):
         TypesConfig(drawer_max_height=0.0)
+
+
+def test_bare_tall_is_a_stacked_front_without_a_handle_taller_than_a_drawer():
+    """``bare_tall`` is min(1, ``tall``) for a front without a handle sharing its top or bottom
+    edge with another front, 0 with a handle or with no such neighbour; being flanked does not
+    turn it off (a front that shares an edge with a front is no patch of wall)."""
+
+    def ev(h, stacked, handle, flanked=False):
+        return Evidence(handle=Handle(0.5, 0.9, "horizontal", 30, "masks") if handle else None, size=(0.6, h),
+                        z_mid=0.5, stacked=stacked, beside_left=False, beside_right=False, partner=False, rail=0.0,
+                        carcass=0.5, labels={}, support=30, flanked=flanked)
+
+    got = [features(ev(h, 1, False), [], [], True)["bare_tall"] for h in (0.2, 0.45, 0.5, 0.55, 0.7, 2.0)]
+    assert got == pytest.approx([0.0, 0.0, 0.5, 1.0, 1.0, 1.0])
+    assert features(ev(0.7, 0, False), [], [], True)["bare_tall"] == 0.0  # lone: bare_lone's
+    assert features(ev(0.7, 2, True), [], [], True)["bare_tall"] == 0.0
+    assert features(ev(0.7, 1, False, flanked=True), [], [], True)["bare_tall"] == 1.0
+    assert features(ev(0.7, 1, False), [], [], True, drawer_max_height=0.7)["bare_tall"] == 0.0
+
+
+@pytest.mark.parametrize("height, hinged_min, excluded", [
+    (0.15, 0.2, True), (0.199, 0.2, True), (0.2, 0.2, False), (0.6, 0.2, False), (0.15, None, False), (0.15, 0.1, False),
+])
+def test_a_front_too_shallow_for_hinges_is_no_door_nor_top_hinged_flap(height, hinged_min, excluded):
+    """``types.hinged_min_height`` excludes the side-hinged doors and the top-hinged flap of a
+    shallower front, with why; the bottom-hinged flap (a tilt-out) and the rest stay; null: off."""
+    types = dataclasses.replace(CFG.types, hinged_min_height=hinged_min)
+    ev = Evidence(handle=Handle(0.92, 0.5, "round", 30, "colour"), size=(0.6, height), z_mid=0.8, stacked=1,
+                  beside_left=False, beside_right=False, partner=False, rail=0.0, carcass=0.5, labels={}, support=30)
+    dec, rec = decide_by_score(ev, types, PRIOR)
+    hinged = {"door_left", "door_right", "flap_top"}
+    assert (hinged <= set(rec["excluded"])) == excluded
+    assert "flap_bottom" not in rec["excluded"] and "drawer" not in rec["excluded"]
+    if excluded:
+        assert "no room for hinges" in rec["excluded"]["door_left"] and dec.family == "drawer"
+    else:
+        assert not hinged & set(rec["excluded"])
+    if hinged_min is None and height == 0.15:
+        assert dec.family == "door"  # the knob by the right edge, as the prior reads it without the rule
+    with pytest.raises(ConfigError, match="hinged_min_height = -0.1"):
+        TypesConfig(hinged_min_height=-0.1)
 
 
 def test_door_hypotheses_mirror_exactly():
@@ -196,7 +238,8 @@ def test_the_hard_cases_with_the_prior():
 def test_every_hard_case_can_fail():
     """Typing every front the same way fails every case but the one of that type."""
     assert not any(r["passed"] for r in run_cases(CFG, only("fixed")))
-    assert [r["name"] for r in run_cases(CFG, only("drawer")) if r["passed"]] == ["knobless_drawer_stack"]
+    assert [r["name"] for r in run_cases(CFG, only("drawer")) if r["passed"]] == ["knobless_drawer_stack",
+                                                                                "shallow_drawer_off_centre_knob"]
 
 
 def test_cases_follow_the_config():

@@ -17,6 +17,12 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_detect.py"
     (["--split", "hand", "--kitchens", "2", "8"], "the hand split has kitchens 0 .. 7"),
     (["--layout", "module_width=[0.3]"], "not KEY=VALUE with KEY a layout field"),
     (["--layout", "module_widths"], "not KEY=VALUE with KEY a layout field"),
+    (["--from-tag", "swa"], "--from-tag needs a --tag of its own"),
+    (["--tag", "swa", "--from-tag", "swa"], "--from-tag needs a --tag of its own"),
+    (["--tag", "t", "--from-tag", "swa", "--set", "decompose.missing_weight=0"], "with --from-tag only articulate.* keys vary"),
+    (["--tag", "t", "--from-tag", "swa", "--decisions", "fitted"], "--from-tag reruns articulate with the prior weights"),
+    (["--tag", "t", "--from-tag", "swa", "--split", "train", "--kitchens", "16", "--detect", "none"],
+     "by_detector/none-swa/decompose/metrics.json: missing; run this split with --tag swa first"),
 ])
 def test_bad_variants_are_refused(tmp_path, args, message):
     r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path), *args], capture_output=True, text=True,
@@ -58,3 +64,33 @@ def test_a_kitchen_not_built_yet_is_built(tmp_path, monkeypatch, layout):
     row = mod.kitchen("train", 16, [], tmp_path, tmp_path / "weights.pt", layout=layout)
     assert row == {"kitchen": 16} and calls == ["capture", "sdf", "mesh"]
     assert (tmp_path / "train" / "kitchen_16" / "layout.json").is_file() == bool(layout)
+
+
+def test_from_tag_reruns_articulate_alone_on_the_tagged_runs_outputs(tmp_path, monkeypatch):
+    """``--from-tag``: detect and decompose are not run; articulate reads the decomposition of
+    ``by_detector/<model>-<from_tag>/`` and writes to the new tag's folder, which is scored."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_detect", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    k = tmp_path / "train" / "kitchen_16"
+    for d in ("mesh", "by_detector/builtin-swa/decompose", "by_detector/builtin-swa/detect"):
+        (k / d).mkdir(parents=True)
+        (k / d / "metrics.json").write_text('{"source": "detections"}')
+    calls = []
+    monkeypatch.setattr(mod, "load_capture", lambda *a, **kw: None)
+    monkeypatch.setattr(mod, "apply_overlay", lambda cap, index: calls.append(("overlay", index)))
+    monkeypatch.setattr(mod, "run_detect", lambda *a, **kw: calls.append("detect") or {})
+    monkeypatch.setattr(mod, "run_decompose", lambda *a, **kw: calls.append("decompose") or {})
+    monkeypatch.setattr(mod, "run_articulate", lambda ac, cap, dec, r, weights: calls.append(("articulate", dec, r.dir)) or {})
+    monkeypatch.setattr(mod, "score_kitchen", lambda sp, parts: calls.append(("score", parts)) or {
+        "precision": 1.0, "recall": 1.0, "n_pred": 1, "n_ignored": 0, "n_gt": 1, "n_correct": 1})
+    row = mod.kitchen("train", 16, ["builtin"], tmp_path, [tmp_path / "w.pt"], tag="hm", from_tag="swa",
+                      overrides=("articulate.types.hinged_min_height=null",))
+    src, dst = k / "by_detector" / "builtin-swa", k / "by_detector" / "builtin-hm"
+    assert "detect" not in calls and "decompose" not in calls
+    assert calls[0] == ("overlay", src / "detect" / "detect.json")
+    assert calls[1] == ("articulate", src / "decompose", dst / ".articulate.tmp")  # written atomically
+    assert calls[2] == ("score", dst / "articulate" / "parts.json")
+    assert row["builtin"]["n_correct"] == 1 and row["builtin"]["source"] == "detections"
