@@ -129,16 +129,15 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
             if not src.metrics("decompose").is_file():
                 raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {from_tag} first")
         t0 = time.perf_counter()
-        if from_tag is not None:
-            pass  # detect and decompose: read from the run tagged from_tag
-        elif decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
+        reuse = from_tag is not None  # detect and decompose: read from the run tagged from_tag
+        if not reuse and decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
             dc = dataclasses.replace(to_typed(DetectConfig, cfg.detect, "detect"), model=model)
             with stage_run("detect", d.detect, seed) as r:
                 r.metrics.update(run_detect(dc, cap, weights, r))
         elif decisions is not None and not v.metrics("decompose").is_file():
             raise SystemExit(f"error: {v.metrics('decompose')}: missing; run this split with --decisions prior first")
         vcap = apply_overlay(cap, d.file("detect", "index"))
-        if decisions is None and from_tag is None:
+        if decisions is None and not reuse:
             with stage_run("decompose", v.stage_dir("decompose"), seed) as r:
                 r.metrics.update(run_decompose(to_typed(DecomposeConfig, cfg.decompose, "decompose"), vcap, sp.mesh, r))
         art = v.stage_dir("articulate") if decisions is None else v.root / FITTED_DIR
