@@ -82,6 +82,15 @@ def variant(model: str, tag: str) -> str:
     return f"{model}-{tag}" if tag else model
 
 
+def reused_run(root: Path, model: str, from_tag: str) -> ScenePaths:
+    """The outputs of ``model``'s run tagged ``from_tag`` under kitchen folder ``root``, whose
+    detections and decomposition a ``--from-tag`` variant reads; stops when it has none."""
+    src = ScenePaths(root / "by_detector", variant(model, from_tag))
+    if not src.metrics("decompose").is_file():
+        raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {from_tag} first")
+    return src
+
+
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path],
             decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "",
             layout: dict | None = None, own_detect: bool = False, from_tag: str | None = None) -> dict:
@@ -120,16 +129,14 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     ac = to_typed(ArticulateConfig, cfg.articulate, "articulate")
     own_detect = own_detect or any(o.lstrip("+~").startswith("detect.") for o in overrides)
     row = {"kitchen": k}
+    reuse = from_tag is not None  # detect and decompose: read from the run tagged from_tag
     for model in models:
         v = ScenePaths(sp.root / "by_detector", variant(model, tag))  # decompose, articulate
         d = v if own_detect else ScenePaths(sp.root / "by_detector", model)  # the detections
         src = v  # the decomposition articulate reads
-        if from_tag is not None:
-            d = src = ScenePaths(sp.root / "by_detector", variant(model, from_tag))
-            if not src.metrics("decompose").is_file():
-                raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {from_tag} first")
+        if reuse:
+            d = src = reused_run(sp.root, model, from_tag)
         t0 = time.perf_counter()
-        reuse = from_tag is not None  # detect and decompose: read from the run tagged from_tag
         if not reuse and decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
             dc = dataclasses.replace(to_typed(DetectConfig, cfg.detect, "detect"), model=model)
             with stage_run("detect", d.detect, seed) as r:
@@ -255,25 +262,24 @@ def main() -> None:
         raise SystemExit(f"error: --kitchens {' '.join(map(str, a.kitchens))}: {why}")
     if a.set and not a.tag:
         raise SystemExit("error: --set needs a --tag, so that the variant does not overwrite the default's outputs")
-    if any(not o.split("=")[0].lstrip("+~").startswith(("detect.", "decompose.", "articulate.")) for o in a.set):
+    set_keys = [o.split("=")[0].lstrip("+~") for o in a.set]
+    if any(not key.startswith(("detect.", "decompose.", "articulate.")) for key in set_keys):
         raise SystemExit(f"error: --set {' '.join(a.set)}: only detect.*, decompose.* and articulate.* keys vary here")
-    if any(o.lstrip("+~").startswith("detect.model") for o in a.set):
+    if any(key.startswith("detect.model") for key in set_keys):
         raise SystemExit("error: --set detect.model: the models are --detect's")
     if a.from_tag is not None:
         if not a.tag or a.tag == a.from_tag:
             raise SystemExit("error: --from-tag needs a --tag of its own, so that the variant does not overwrite the run it reads")
-        if any(not o.split("=")[0].lstrip("+~").startswith("articulate.") for o in a.set):
+        if any(not key.startswith("articulate.") for key in set_keys):
             raise SystemExit(f"error: --set {' '.join(a.set)}: with --from-tag only articulate.* keys vary (detect and decompose are read)")
         if a.decisions == "fitted":
             raise SystemExit("error: --from-tag reruns articulate with the prior weights; --decisions fitted has its own rerun")
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
     check_built(a.out, a.split, a.kitchens, layout)
-    for k in a.kitchens if a.from_tag is not None else []:
+    for k in a.kitchens if a.from_tag is not None else []:  # before any build
         for model in a.detect:
-            src = ScenePaths(a.out / a.split / f"kitchen_{k}" / "by_detector", variant(model, a.from_tag))
-            if not src.metrics("decompose").is_file():
-                raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {a.from_tag} first")
+            reused_run(a.out / a.split / f"kitchen_{k}", model, a.from_tag)
     for w in a.weights if "builtin" in a.detect else []:
         if not w.is_file():
             raise SystemExit(f"error: {w}: the built-in detector's weights are missing (run `dvc repro detector`)")
