@@ -10,7 +10,10 @@ fitted with an L2 penalty chosen by leave-kitchens-out cross-validation. The lab
 (:data:`~drawer_lib.articulation.vocab.LABEL_FEATURES`) are not fitted (generic detections
 carry no labels to fit them on) and keep their prior values. A hypothesis with fewer than
 ``min_examples`` train fronts gets only its bias fitted, its other weights from the prior: a few
-examples would otherwise teach it whatever they happen to share.
+examples would otherwise teach it whatever they happen to share. A feature that is 0 on every
+train front (a cue the train kitchens never show, such as a tall stacked front without a handle)
+keeps its prior weight too: the data say nothing about it, and the penalty alone would drive it
+to 0 and silently drop a cue the prior put there on purpose.
 """
 
 import json
@@ -90,6 +93,14 @@ def tensors(rows: Sequence[Row]) -> tuple[torch.Tensor, torch.Tensor, torch.Tens
     return Xc, Xd, y
 
 
+def unseen_features(Xc: torch.Tensor, Xd: torch.Tensor) -> frozenset[str]:
+    """The names of COMMON and DOOR_ONLY features that are exactly 0 on every row of ``Xc``
+    [N, C] and ``Xd`` [N, 2, D] (both sides, for a door feature); all of them when N = 0."""
+    zc = (Xc == 0).all(0) if len(Xc) else torch.ones(len(COMMON), dtype=torch.bool)
+    zd = (Xd == 0).all(0).all(0) if len(Xd) else torch.ones(len(DOOR_ONLY), dtype=torch.bool)
+    return frozenset([k for k, z in zip(COMMON, zc.tolist()) if z] + [k for k, z in zip(DOOR_ONLY, zd.tolist()) if z])
+
+
 def scores(W: dict[str, torch.Tensor], Xc: torch.Tensor, Xd: torch.Tensor) -> torch.Tensor:
     """[N, len(HYPOTHESES)] in the order of HYPOTHESES (``W[set]``: weights in the order of
     :func:`~drawer_lib.articulation.vocab.set_features`)."""
@@ -109,8 +120,10 @@ def fit(Xc: torch.Tensor, Xd: torch.Tensor, y: torch.Tensor, lam: float, prior: 
     biases included (unpenalised, they would all rise together without bound whenever a
     hypothesis has no example: that lowers its probability at no cost). Kept at the
     ``prior``'s values: the label weights, every weight of a hypothesis without examples in
-    ``y``, and all but the bias of one with fewer than ``min_examples``. Deterministic (float64
-    L-BFGS from zeros)."""
+    ``y``, all but the bias of one with fewer than ``min_examples``, and the weights of the
+    features that are 0 on every row (:func:`unseen_features`). Deterministic (float64 L-BFGS
+    from zeros)."""
+    unseen = unseen_features(Xc, Xd)
     free_mask = torch.tensor([k not in LABEL_FEATURES for k in COMMON], dtype=torch.float64)
     family = [weight_set(h) for h in HYPOTHESES]
     n_of = {k: int(sum(int((y == i).sum()) for i, f in enumerate(family) if f == k)) for k in WEIGHT_SETS}
@@ -120,7 +133,7 @@ def fit(Xc: torch.Tensor, Xd: torch.Tensor, y: torch.Tensor, lam: float, prior: 
     for k in WEIGHT_SETS:
         names = COMMON + (DOOR_ONLY if k == "door" else ())
         W[k] = torch.zeros(len(names), dtype=torch.float64, requires_grad=True)
-        keep = [f in LABEL_FEATURES or k not in seen or (k in few and f != "bias") for f in names]
+        keep = [f in LABEL_FEATURES or f in unseen or k not in seen or (k in few and f != "bias") for f in names]
         base[k] = torch.tensor([prior.get(k, {}).get(f, 0.0) if kp else 0.0 for f, kp in zip(names, keep)],
                                dtype=torch.float64)
         masks[k] = torch.tensor([0.0 if kp else 1.0 for kp in keep], dtype=torch.float64)
@@ -156,7 +169,8 @@ def as_dict(W: dict[str, torch.Tensor], ndigits: int = 4) -> dict[str, dict[str,
 class FitResult:
     """The chosen ``weights``, the penalty ``lam``, the cross-validated accuracy of every penalty
     tried (``cv``: [(lam, accuracy)]), the train accuracy and confusion (rows: GT, columns:
-    predicted, in the order of HYPOTHESES), the fronts per hypothesis and the kitchens."""
+    predicted, in the order of HYPOTHESES), the fronts per hypothesis, the kitchens, and the
+    features no train front shows (``unseen``: their weights are the prior's)."""
 
     weights: dict[str, dict[str, float]]
     lam: float
@@ -165,12 +179,14 @@ class FitResult:
     confusion: list[list[int]]
     counts: dict[str, int]
     kitchens: list[str]
+    unseen: list[str]
 
     def record(self) -> dict:
         """The ``fit`` block of the weights file and the stage's metrics."""
         return {"lambda": self.lam, "cv_accuracy": dict((f"{lam:g}", round(a, 6)) for lam, a in self.cv),
                 "train_accuracy": round(self.train_accuracy, 6), "fronts": self.counts,
                 "n_fronts": int(sum(self.counts.values())), "kitchens": self.kitchens,
+                "unseen_features_kept_prior": self.unseen,
                 "confusion": {"hypotheses": list(HYPOTHESES), "rows_gt_cols_pred": self.confusion}}
 
 
@@ -220,7 +236,8 @@ def fit_decisions(rows: Sequence[Row], prior: dict[str, dict[str, float]], lambd
     for t, p in zip(y.tolist(), pred.tolist()):
         conf[t, p] += 1
     return FitResult(as_dict(W), lam, cv, float((pred == y).double().mean()), conf.tolist(),
-                     {h: int((y == i).sum()) for i, h in enumerate(HYPOTHESES)}, kitchens)
+                     {h: int((y == i).sum()) for i, h in enumerate(HYPOTHESES)}, kitchens,
+                     sorted(unseen_features(Xc, Xd)))
 
 
 def run_fit(cfg: BenchConfig, ac: ArticulateConfig, bench: BenchPaths, run: StageRun) -> dict:
@@ -243,6 +260,6 @@ def run_fit(cfg: BenchConfig, ac: ArticulateConfig, bench: BenchPaths, run: Stag
     write_json(run.dir / bench_name("cases"), cases)
     return {"lambda": res.lam, "cv_accuracy": dict(res.cv)[res.lam], "cv_accuracy_best": max(a for _, a in res.cv),
             "train_accuracy": res.train_accuracy,
-            "n_fronts": rec["n_fronts"], "n_kitchens": len(res.kitchens),
+            "n_fronts": rec["n_fronts"], "n_kitchens": len(res.kitchens), "n_unseen_features": len(res.unseen),
             **{f"n_{h}": n for h, n in res.counts.items()},
             "cases_passed": sum(c["passed"] for c in cases), "cases_total": len(cases)}

@@ -102,6 +102,31 @@ def test_fit_keeps_the_prior_where_the_data_cannot_speak():
     assert few["sliding"].get("bias", 0.0) != prior["sliding"].get("bias", 0.0)
 
 
+def test_a_feature_no_train_front_shows_keeps_its_prior_weight():
+    """bare_tall is 0 on every drawn front: the fit keeps the prior's +1 for a door (the penalty
+    alone would take it to 0) and says so; once some fronts show it, it is fitted."""
+    prior = prior_weights()
+    rows = draw(200)
+    Xc, Xd, y = fd.tensors(rows)
+    assert "bare_tall" in fd.unseen_features(Xc, Xd) and "handle" not in fd.unseen_features(Xc, Xd)
+    assert "h_free" not in fd.unseen_features(Xc, Xd)  # a door feature seen on one side only is seen
+    W = fd.as_dict(fd.fit(Xc, Xd, y, lam=0.01, prior=prior), ndigits=6)
+    assert W["door"]["bare_tall"] == prior["door"]["bare_tall"] == 1.0
+    res = fd.fit_decisions(rows, prior, [1e-2], folds=2, min_examples=0)
+    assert "bare_tall" in res.unseen and res.record()["unseen_features_kept_prior"] == res.unseen
+    assert res.weights["door"]["bare_tall"] == 1.0
+    # the same fronts, the fixed ones now tall and stacked without a handle: the data speak
+    for _, f, _, lab in rows:
+        if lab == "fixed":
+            f["bare_tall"] = 1.0
+    Xc, Xd, y = fd.tensors(rows)
+    assert "bare_tall" not in fd.unseen_features(Xc, Xd)
+    W = fd.as_dict(fd.fit(Xc, Xd, y, lam=0.01, prior=prior), ndigits=6)
+    assert W["door"].get("bare_tall", 0.0) < 1.0 and W["fixed"].get("bare_tall", 0.0) > 0.0
+    empty = fd.unseen_features(Xc[:0], Xd[:0])
+    assert empty == frozenset(COMMON) | frozenset(DOOR_ONLY)
+
+
 def test_cross_validation_picks_the_penalty_and_is_deterministic():
     rows = draw(240, kitchens=6)
     log = []
