@@ -7,6 +7,8 @@ stage scores its fit). The network runs once per view; only the decoding varies.
     python scripts/bench_decode.py --split train --kitchens $(seq 16 31) --every 3 \\
         --variant "core_handle=false merge_edge=0" --variant "merge_edge=0" --variant ""
     python scripts/bench_decode.py --split test --kitchens 0 1 2 3 4 5 --every 2 --variant "core_handle=false merge_edge=0" --variant ""
+    python scripts/bench_decode.py --kitchens $(seq 16 31) --layout 'module_widths=[0.6, 0.9]' --variant "merge_edge=0.7" --variant ""
+        # a stress variant of the same kitchens (other layout keys, as scripts/bench_detect.py --layout)
 
 Tune on the train split's kitchens 16-31 (the fit uses 0-15 and 32-79); score on the test split.
 Simulated input: the generator's renders.
@@ -19,6 +21,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 import drawer_lib  # noqa: F401  (before torch: the OpenMP policy)
+from drawer_lib.bench.cli import parse_layout
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.config.compose import compose_config
 from drawer_lib.config.typed import to_typed
@@ -58,7 +61,10 @@ def main() -> None:
     ap.add_argument("--variant", action="append", default=None, metavar="'KEY=VALUE ...'",
                     help="detect.builtin keys over conf/detect's (repeat; '' is the configured decoding)")
     ap.add_argument("--iou", type=float, default=0.5)
+    ap.add_argument("--layout", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="keys of each kitchen's layout block over its split's, values in YAML (a stress variant)")
     a = ap.parse_args()
+    layout = parse_layout(a.layout)
     cfg = compose_config(ROOT / "conf", ["scene=kitchen_small"])
     base = to_typed(BuiltinDetectConfig, cfg.detect.builtin, "detect.builtin")
     variants = [(v, parse_variant(v, base)) for v in (a.variant or [""])]
@@ -71,11 +77,12 @@ def main() -> None:
     scene = OmegaConf.to_container(cfg.scene, resolve=True)
     views = []
     for k in a.kitchens:
-        synth = kitchen_scene(scene, a.split, k).synth
+        synth = kitchen_scene(scene, a.split, k, layout=layout or None).synth
         frames = list(range(0, synth.camera.n_frames, a.every))
         views += [(class_probs(model, v.rgb, base.working_size), v.fronts) for v in render_views(synth, render, frames, edge_px)]
         print(f"{a.split} kitchen {k}: {len(views)} views", flush=True)
-    print(f"\n| {a.split} kitchens {a.kitchens[0]}..{a.kitchens[-1]}, one view in {a.every} | 2D precision | 2D recall | matched / predicted / true |")
+    where = f"{a.split} kitchens {a.kitchens[0]}..{a.kitchens[-1]}" + (f" ({' '.join(a.layout)})" if a.layout else "")
+    print(f"\n| {where}, one view in {a.every} | 2D precision | 2D recall | matched / predicted / true |")
     print("|---|---|---|---|")
     for text, dc in variants:
         s = score_probs(views, dc, a.iou)

@@ -39,12 +39,12 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import OmegaConf
 
 import drawer_lib  # noqa: F401  (before torch: the OpenMP policy)
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.pipeline import run_articulate
+from drawer_lib.bench.cli import parse_layout
 from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.evaluate import score_kitchen
 from drawer_lib.bench.fit import fit_decisions, labelled_fronts
@@ -68,7 +68,6 @@ from drawer_lib.runner import stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
-from drawer_lib.synth.config import LAYOUT_KEYS
 from drawer_lib.synth.splits import HAND, SPLITS, missing_kitchens
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -158,17 +157,6 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
                       "parts_2d_precision": dm.get("parts_2d_precision"), "parts_2d_recall": dm.get("parts_2d_recall"),
                       "source": read_json(src.metrics("decompose"))["source"], "s": round(time.perf_counter() - t0, 1)}
     return row
-
-
-def parse_layout(pairs: list[str]) -> dict:
-    """``KEY=VALUE`` pairs (YAML values) as layout keys, checked against the layout block's fields."""
-    out = {}
-    for kv in pairs:
-        key, sep, val = kv.partition("=")
-        if not sep or key not in LAYOUT_KEYS:
-            raise SystemExit(f"error: --layout {kv!r}: not KEY=VALUE with KEY a layout field ({', '.join(sorted(LAYOUT_KEYS))})")
-        out[key] = yaml.safe_load(val)
-    return out
 
 
 def check_built(out: Path, split: str, kitchens: list[int], layout: dict) -> None:

@@ -28,6 +28,12 @@ def test_a_variant_replaces_only_its_keys():
     assert _module().parse_variant("", base) == base
 
 
+def test_a_bad_layout_key_is_refused_before_anything_renders():
+    r = subprocess.run([sys.executable, str(SCRIPT), "--kitchens", "0", "--layout", "module_width=[0.6]"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode != 0 and "--layout 'module_width=[0.6]': not KEY=VALUE" in r.stderr
+
+
 @pytest.mark.parametrize("variant", ["nope=1", "merge_edge", "merge_edge=2"])
 def test_bad_variants_are_refused(variant):
     r = subprocess.run([sys.executable, str(SCRIPT), "--kitchens", "0", "--variant", variant], capture_output=True,
