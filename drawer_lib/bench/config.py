@@ -16,12 +16,14 @@ class FitConfig:
     (``lambdas``), ``folds`` of leave-kitchens-out cross-validation, and ``min_examples``:
     a hypothesis with fewer train fronts gets only its bias fitted (the rest: the prior).
     ``select``: ``one_se`` (the largest penalty whose CV accuracy is within one standard error
-    of the best: differences the folds cannot resolve do not pick a looser model) or ``best``."""
+    of the best: differences the folds cannot resolve do not pick a looser model) or ``best``.
+    ``centre``: what the penalty pulls the fitted weights towards, ``zero`` or the ``prior``."""
 
     lambdas: list[float] = field(default_factory=lambda: [1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1])
     folds: int = 5
     min_examples: int = 10
     select: str = "one_se"
+    centre: str = "zero"
 
     def __post_init__(self):
         if not self.lambdas or any(not lam >= 0 for lam in self.lambdas):
@@ -32,6 +34,8 @@ class FitConfig:
             raise ConfigError(f"bench.fit.min_examples = {self.min_examples} must be >= 0")
         if self.select not in ("one_se", "best"):
             raise ConfigError(f"bench.fit.select = {self.select!r} must be one_se or best")
+        if self.centre not in ("zero", "prior"):
+            raise ConfigError(f"bench.fit.centre = {self.centre!r} must be zero or prior")
 
 
 def _check_indices(key: str, ks: list) -> None:

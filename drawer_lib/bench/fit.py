@@ -115,14 +115,18 @@ def scores(W: dict[str, torch.Tensor], Xc: torch.Tensor, Xd: torch.Tensor) -> to
 
 
 def fit(Xc: torch.Tensor, Xd: torch.Tensor, y: torch.Tensor, lam: float, prior: dict[str, dict[str, float]],
-        min_examples: int = 0) -> dict[str, torch.Tensor]:
+        min_examples: int = 0, centre: str = "zero") -> dict[str, torch.Tensor]:
     """Weights minimising the mean cross-entropy + ``lam`` x the sum of squared fitted weights,
     biases included (unpenalised, they would all rise together without bound whenever a
-    hypothesis has no example: that lowers its probability at no cost). Kept at the
+    hypothesis has no example: that lowers its probability at no cost); with ``centre="prior"``
+    the penalty is on each fitted weight's distance from its prior value instead, so a cue the
+    train fronts say little about stays near the prior rather than near 0. Kept at the
     ``prior``'s values: the label weights, every weight of a hypothesis without examples in
     ``y``, all but the bias of one with fewer than ``min_examples``, and the weights of the
     features that are 0 on every row (:func:`unseen_features`). Deterministic (float64 L-BFGS
     from zeros)."""
+    if centre not in ("zero", "prior"):
+        raise ValueError(f"fit: centre {centre!r} is not zero or prior")
     unseen = unseen_features(Xc, Xd)
     free_mask = torch.tensor([k not in LABEL_FEATURES for k in COMMON], dtype=torch.float64)
     family = [weight_set(h) for h in HYPOTHESES]
@@ -134,8 +138,8 @@ def fit(Xc: torch.Tensor, Xd: torch.Tensor, y: torch.Tensor, lam: float, prior: 
         names = COMMON + (DOOR_ONLY if k == "door" else ())
         W[k] = torch.zeros(len(names), dtype=torch.float64, requires_grad=True)
         keep = [f in LABEL_FEATURES or f in unseen or k not in seen or (k in few and f != "bias") for f in names]
-        base[k] = torch.tensor([prior.get(k, {}).get(f, 0.0) if kp else 0.0 for f, kp in zip(names, keep)],
-                               dtype=torch.float64)
+        base[k] = torch.tensor([prior.get(k, {}).get(f, 0.0) if kp or centre == "prior" else 0.0
+                                for f, kp in zip(names, keep)], dtype=torch.float64)
         masks[k] = torch.tensor([0.0 if kp else 1.0 for kp in keep], dtype=torch.float64)
     opt = torch.optim.LBFGS(list(W.values()), lr=1, max_iter=500, tolerance_grad=1e-9, line_search_fn="strong_wolfe")
 
@@ -205,10 +209,11 @@ def select_penalty(cv: Sequence[tuple[float, float]], n: int, rule: str = "one_s
 
 def fit_decisions(rows: Sequence[Row], prior: dict[str, dict[str, float]], lambdas: Sequence[float], folds: int,
                   min_examples: int, log: Callable[[int, float, float], None] | None = None,
-                  select: str = "one_se") -> FitResult:
+                  select: str = "one_se", centre: str = "zero") -> FitResult:
     """Choose the penalty by leave-kitchens-out cross-validation (kitchen i of the sorted names
     in fold i mod ``folds``; :func:`select_penalty` with rule ``select``), then fit all
-    ``rows`` with it. ``log(i, lam, accuracy)`` after each penalty."""
+    ``rows`` with it (penalty towards ``centre``, :func:`fit`). ``log(i, lam, accuracy)`` after
+    each penalty."""
     if not rows:
         raise InputError("fit_decisions: no labelled fronts with features in the train kitchens")
     if folds < 2 or not lambdas:
@@ -224,13 +229,13 @@ def fit_decisions(rows: Sequence[Row], prior: dict[str, dict[str, float]], lambd
             tr, te = fold != f, fold == f
             if te.sum() == 0:
                 continue
-            W = fit(Xc[tr], Xd[tr], y[tr], float(lam), prior, min_examples)
+            W = fit(Xc[tr], Xd[tr], y[tr], float(lam), prior, min_examples, centre)
             correct += int((scores(W, Xc[te], Xd[te]).argmax(-1) == y[te]).sum())
         cv.append((float(lam), correct / len(y)))
         if log is not None:
             log(i, float(lam), cv[-1][1])
     lam = select_penalty(cv, len(y), select)
-    W = fit(Xc, Xd, y, lam, prior, min_examples)
+    W = fit(Xc, Xd, y, lam, prior, min_examples, centre)
     pred = scores(W, Xc, Xd).argmax(-1)
     conf = np.zeros((len(HYPOTHESES), len(HYPOTHESES)), int)
     for t, p in zip(y.tolist(), pred.tolist()):
@@ -253,7 +258,7 @@ def run_fit(cfg: BenchConfig, ac: ArticulateConfig, bench: BenchPaths, run: Stag
     curve = run.curve(["lambda", "cv_accuracy"], name=bench_name("cv"))
     res = fit_decisions(rows, ac.types.prior, cfg.fit.lambdas, cfg.fit.folds, cfg.fit.min_examples,
                         log=lambda i, lam, acc: curve.log(i, **{"lambda": lam, "cv_accuracy": acc}),
-                        select=cfg.fit.select)
+                        select=cfg.fit.select, centre=cfg.fit.centre)
     rec = res.record()
     write_weights(run.dir / bench_name("weights"), res.weights, rec)
     cases = run_cases(ac, res.weights)

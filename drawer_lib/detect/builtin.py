@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
-from jaxtyping import Float, Int, UInt8
+from jaxtyping import Bool, Float, Int, UInt8
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -155,7 +155,10 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
     watershed of P(edge) from them floods the front, edge and handle pixels, so neighbouring
     fronts meet on their edge. Two regions whose shared boundary has a mean P(edge) below
     ``merge_edge`` (the pair's higher value at each boundary pixel pair) are one front: no
-    edge was seen between them (:func:`merge_weak_boundaries`). A front keeps its pixels but
+    edge was seen between them (:func:`merge_weak_boundaries`); below ``merge_edge_band`` too,
+    while the merged front holds at most one handle (``merge_band_limit: one_handle``; the
+    handles as below, each counted in the region holding most of its pixels) or at most two
+    regions (``two_regions``). A front keeps its pixels but
     its handle's, has at least ``min_area_px`` and a mean P(front) + P(edge) of at least
     ``min_score``. Handles and objects: connected regions of their class (at least a
     quarter of ``min_area_px`` and ``min_area_px``). Scores are mean probabilities."""
@@ -175,8 +178,14 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
         markers[small[markers]] = 0
     if markers.any():
         lab = watershed(prob[EDGE], markers=markers, mask=np.isin(cls, (FRONT, EDGE, HANDLE)))
-        if cfg.merge_edge > 0:
-            lab = merge_weak_boundaries(lab, prob[EDGE], cfg.merge_edge)
+        if cfg.merge_edge > 0 or cfg.merge_edge_band > 0:
+            carried, limit = None, 1
+            if cfg.merge_edge_band > cfg.merge_edge and cfg.merge_band_limit == "one_handle":
+                carried = handles_per_region(lab, cls == HANDLE, max(1, cfg.min_area_px // 4))
+            elif cfg.merge_edge_band > cfg.merge_edge:  # two_regions
+                carried, limit = np.ones(int(lab.max()) + 1, np.int64), 2
+            lab = merge_weak_boundaries(lab, prob[EDGE], cfg.merge_edge, band_max=cfg.merge_edge_band,
+                                        carried=carried, limit=limit)
         lab[cls == HANDLE] = 0  # a front's mask leaves its handle out, as a detector's does
         pf = prob[FRONT] + prob[EDGE]
         areas = np.bincount(lab.ravel())
@@ -202,12 +211,20 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
     return dets
 
 
-def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray, "h w"], max_mean: float
+def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray, "h w"], max_mean: float, *,
+                          band_max: float = 0.0, carried: Int[np.ndarray, "n"] | None = None, limit: int = 1
                           ) -> Int[np.ndarray, "h w"]:
     """``lab`` (0 background, regions 1..n) with every two 4-adjacent regions whose shared
     boundary has a mean edge probability below ``max_mean`` relabelled as one (transitively;
     the merged region keeps the smaller label). A boundary pixel pair's value is the higher of
     its two ``p_edge``: a watershed boundary runs along the ridge of ``p_edge``.
+
+    With ``carried`` (a count per label 0..max(lab)) and ``band_max`` above ``max_mean``, a
+    boundary whose mean lies between the two also merges, but only while the two regions
+    together carry at most ``limit``: pairs are taken from the weakest boundary up and a merged
+    region carries the sum, so no chain of merges gathers more. The decoding counts handles
+    (limit 1: two doors side by side have a handle each, a front cut down its middle one or
+    none) or regions (limit 2: a front is cut in two at most, a run of three doors is not one).
 
     >>> lab = np.array([[1, 1, 2, 2, 3]]); pe = np.array([[0, 0.1, 0.2, 0.9, 0.9]])
     >>> merge_weak_boundaries(lab, pe, 0.5).tolist()
@@ -225,12 +242,57 @@ def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray,
         return lab
     pairs, inv = np.unique(key, return_inverse=True)
     mean = np.bincount(inv, weights=np.concatenate(vals)) / np.bincount(inv)
-    weak = pairs[mean < max_mean]
-    graph = coo_matrix((np.ones(len(weak)), (weak // n, weak % n)), shape=(n, n))
-    _, comp = connected_components(graph, directed=False)
-    smallest = np.full(comp.max() + 1, n)
-    np.minimum.at(smallest, comp, np.arange(n))
-    return smallest[comp][lab]
+    if carried is None or band_max <= max_mean:
+        weak = pairs[mean < max_mean]
+        graph = coo_matrix((np.ones(len(weak)), (weak // n, weak % n)), shape=(n, n))
+        _, comp = connected_components(graph, directed=False)
+        smallest = np.full(comp.max() + 1, n)
+        np.minimum.at(smallest, comp, np.arange(n))
+        return smallest[comp][lab]
+    if len(carried) != n:
+        raise ValueError(f"merge_weak_boundaries: carried has {len(carried)} entries, labels 0..{n - 1}")
+    # union-find over the few region pairs (tens), weakest boundary first; ties by pair key
+    parent = list(range(n))
+    load = [int(c) for c in carried]
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for k in np.lexsort((pairs, mean)):
+        if mean[k] >= band_max:
+            break
+        ra, rb = root(int(pairs[k] // n)), root(int(pairs[k] % n))
+        if ra == rb or (mean[k] >= max_mean and load[ra] + load[rb] > limit):
+            continue
+        lo, hi = min(ra, rb), max(ra, rb)
+        parent[hi] = lo
+        load[lo] += load[hi]
+    return np.array([root(i) for i in range(n)])[lab]
+
+
+def handles_per_region(lab: Int[np.ndarray, "h w"], handle: Bool[np.ndarray, "h w"], min_px: int) -> Int[np.ndarray, "n"]:
+    """How many handles each region of ``lab`` carries (per label 0..max(lab); 0 for the
+    background): the connected regions of ``handle`` of at least ``min_px`` pixels, each counted
+    in the label holding most of its pixels (ties: the smaller label), none where that is the
+    background.
+
+    >>> lab = np.array([[1, 1, 1, 2, 2, 2]]); h = np.array([[0, 1, 0, 0, 1, 1]], bool)
+    >>> handles_per_region(lab, h, 1).tolist()
+    [0, 1, 1]
+    """
+    n = int(lab.max()) + 1
+    comp, k = ndimage.label(handle)
+    out = np.zeros(n, np.int64)
+    if not k:
+        return out
+    votes = np.bincount(comp.ravel() * n + lab.ravel(), minlength=(k + 1) * n).reshape(k + 1, n)[1:]
+    big = votes.sum(1) >= min_px
+    owner = votes.argmax(1)[big]
+    np.add.at(out, owner[owner > 0], 1)
+    return out
 
 
 def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:

@@ -50,9 +50,13 @@ class BuiltinDetectConfig:
     min_area_px: int = 40
     min_score: float = 0.6
     merge_edge: float = 0.5
+    merge_edge_band: float = 0.0  # above merge_edge: boundaries up to this merge too, within merge_band_limit
+    merge_band_limit: str = "one_handle"  # one_handle | two_regions: what a front merged in the band may hold
 
     def __post_init__(self):
-        for k in ("edge_max", "min_score", "merge_edge"):
+        if self.merge_band_limit not in ("one_handle", "two_regions"):
+            raise ConfigError(f"detect.builtin.merge_band_limit = {self.merge_band_limit!r}: one_handle or two_regions")
+        for k in ("edge_max", "min_score", "merge_edge", "merge_edge_band"):
             if not 0 <= getattr(self, k) <= 1:
                 raise ConfigError(f"detect.builtin.{k} = {getattr(self, k)}: a probability, must be in [0, 1]")
 

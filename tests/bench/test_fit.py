@@ -127,6 +127,26 @@ def test_a_feature_no_train_front_shows_keeps_its_prior_weight():
     assert empty == frozenset(COMMON) | frozenset(DOOR_ONLY)
 
 
+def test_a_penalty_centred_on_the_prior_pulls_towards_it():
+    """A huge penalty: centred on zero every fitted weight but the biases' spread goes to 0;
+    centred on the prior every weight stays at the prior's. A small one: both fit the data."""
+    prior = prior_weights()
+    rows = draw(200)
+    Xc, Xd, y = fd.tensors(rows)
+    big_zero = fd.as_dict(fd.fit(Xc, Xd, y, lam=1e6, prior=prior), ndigits=3)
+    big_prior = fd.as_dict(fd.fit(Xc, Xd, y, lam=1e6, prior=prior, centre="prior"), ndigits=3)
+    assert big_zero["door"].get("handle", 0.0) == 0.0 != prior["door"]["handle"]
+    for k in big_prior:
+        for f, w in prior.get(k, {}).items():
+            assert abs(big_prior[k].get(f, 0.0) - w) < 1e-2, (k, f)
+    small_zero = fd.fit(Xc, Xd, y, lam=1e-6, prior=prior)
+    small_prior = fd.fit(Xc, Xd, y, lam=1e-6, prior=prior, centre="prior")
+    acc = lambda W: float((fd.scores(W, Xc, Xd).argmax(-1) == y).double().mean())
+    assert acc(small_prior) > 0.9 and abs(acc(small_prior) - acc(small_zero)) < 0.03
+    with pytest.raises(ValueError, match="centre 'one'"):
+        fd.fit(Xc, Xd, y, lam=1.0, prior=prior, centre="one")
+
+
 def test_cross_validation_picks_the_penalty_and_is_deterministic():
     rows = draw(240, kitchens=6)
     log = []

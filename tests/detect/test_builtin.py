@@ -22,6 +22,7 @@ from drawer_lib.detect.builtin import (
     TinyUNet,
     class_probs,
     decode_instances,
+    handles_per_region,
     merge_weak_boundaries,
     normalise,
     load_detector,
@@ -94,6 +95,73 @@ def test_regions_without_an_edge_between_them_merge():
     assert np.array_equal(merge_weak_boundaries(np.zeros((3, 3), np.int64), np.zeros((3, 3)), 0.5), np.zeros((3, 3)))
     with pytest.raises(ConfigError, match="merge_edge"):
         BuiltinDetectConfig(merge_edge=1.5)
+
+
+def test_a_weak_boundary_merges_only_while_the_pair_carries_one_handle():
+    lab = np.zeros((6, 12), np.int64)
+    lab[:, 0:3], lab[:, 3:6], lab[:, 6:9], lab[:, 9:12] = 1, 2, 3, 4
+    pe = np.zeros((6, 12))
+    pe[:, 2:4] = 0.6   # 1|2: weak-ish
+    pe[:, 5:7] = 0.55  # 2|3: weaker, taken first
+    pe[:, 8:10] = 0.3  # 3|4: below merge_edge, always merges
+    handles = np.array([0, 1, 0, 1, 0])  # per label; regions 1 and 3 carry a handle each
+    out = merge_weak_boundaries(lab, pe, 0.5, band_max=0.7, carried=handles)
+    # 3|4 merge (sure); 2|3 merge (2 has none, {3, 4} one); 1|{2, 3, 4} would gather two: kept apart
+    assert (out[:, 0:3] == 1).all() and (out[:, 3:12] == 2).all()
+    # without handles counted, 0.7 merges everything, as the plain threshold does
+    assert (merge_weak_boundaries(lab, pe, 0.7) == 1).all()
+    assert (merge_weak_boundaries(lab, pe, 0.5, band_max=0.7, carried=np.zeros(5, np.int64)) == 1).all()
+    # the conditional band off: the plain threshold
+    assert np.array_equal(merge_weak_boundaries(lab, pe, 0.5, band_max=0.5, carried=handles),
+                          merge_weak_boundaries(lab, pe, 0.5))
+    # a chain of handle-less regions between two handled ones never joins both
+    out = merge_weak_boundaries(lab, np.full_like(pe, 0.6), 0.5, band_max=0.7, carried=np.array([0, 1, 0, 0, 1]))
+    assert len(np.unique(out)) == 2 and out[0, 0] != out[0, -1]
+    # regions counted, limit 2: the weakest pair first (3|4 is sure; 2|3 would make three), then 1|2
+    out = merge_weak_boundaries(lab, pe, 0.5, band_max=0.7, carried=np.ones(5, np.int64), limit=2)
+    assert (out[:, 0:6] == 1).all() and (out[:, 6:12] == 3).all()
+    with pytest.raises(ValueError, match="carried has 3"):
+        merge_weak_boundaries(lab, pe, 0.5, band_max=0.7, carried=np.zeros(3, np.int64))
+    with pytest.raises(ConfigError, match="merge_band_limit"):
+        BuiltinDetectConfig(merge_band_limit="three")
+
+
+def test_handles_are_counted_in_the_region_holding_most_of_their_pixels():
+    lab = np.zeros((4, 10), np.int64)
+    lab[:, 0:5], lab[:, 5:10] = 1, 2
+    h = np.zeros((4, 10), bool)
+    h[1:3, 3:6] = True   # 4 px in 1, 2 px in 2: region 1's
+    h[0, 8] = True       # one pixel: below min_px, not a handle
+    h[3, 7:10] = True    # region 2's
+    assert handles_per_region(lab, h, 2).tolist() == [0, 1, 1]
+    assert handles_per_region(lab, np.zeros_like(h), 2).tolist() == [0, 0, 0]
+    lab[:, 0:5] = 0      # a handle over the background counts for nobody
+    assert handles_per_region(lab, h, 2).tolist() == [0, 0, 1]
+
+
+def test_decoding_keeps_two_handled_doors_apart_and_joins_a_cut_front():
+    """Two doors side by side (a handle each; P(edge) 0.6 between them), then a clear edge
+    (0.9), then one wide front the network cut down its middle (one handle; 0.6 along the cut):
+    the plain threshold 0.7 joins both faint boundaries, the handle-counting band only the cut."""
+    cls = np.zeros((30, 100), np.int64)
+    cls[5:25, 2:98] = FRONT
+    for c in (30, 50, 75):
+        cls[5:25, c:c + 2] = EDGE
+    cls[8:22, 26:28] = HANDLE   # left door's
+    cls[8:22, 33:35] = HANDLE   # second door's
+    cls[8:22, 90:92] = HANDLE   # the wide front's (cut at 75), one handle
+    prob = _probs(cls)
+    for c in (30, 75):
+        prob[FRONT, 5:25, c:c + 2], prob[EDGE, 5:25, c:c + 2] = 0.4, 0.6  # a seen but faint edge
+    base = dict(min_area_px=20, min_score=0.5, erode_px=1, min_seed_px=5)
+    n_fronts = lambda cfg: sum(d.label == "front" for d in decode_instances(prob, BuiltinDetectConfig(**base, **cfg)))
+    assert n_fronts(dict(merge_edge=0.5)) == 4
+    assert n_fronts(dict(merge_edge=0.7)) == 2
+    assert n_fronts(dict(merge_edge=0.5, merge_edge_band=0.7)) == 3  # the cut at 75 joins; the doors stay apart
+    assert n_fronts(dict(merge_edge=0.5, merge_edge_band=0.7, merge_band_limit="two_regions")) == 2  # pairs only
+    prob[EDGE, 5:25, 50:52], prob[FRONT, 5:25, 50:52] = 0.6, 0.4  # the clear edge faint too: a run of four
+    assert n_fronts(dict(merge_edge=0.7)) == 1
+    assert n_fronts(dict(merge_edge=0.5, merge_edge_band=0.7, merge_band_limit="two_regions")) == 2
 
 
 def test_painting_keeps_handles_on_top_and_ids_local():
