@@ -26,6 +26,10 @@ def test_a_variant_replaces_only_its_keys():
     assert (v.core_handle, v.merge_edge, v.erode_px) == (False, 0.0, 3) and v.edge_max == base.edge_max
     assert _module().parse_variant("core_handle=True", base).core_handle is True
     assert _module().parse_variant("", base) == base
+    v = _module().parse_variant("merge_edge=0.5 merge_edge_band=0.7 merge_band_limit=two_regions", base)
+    assert (v.merge_edge, v.merge_edge_band, v.merge_band_limit) == (0.5, 0.7, "two_regions")
+    with pytest.raises(SystemExit, match="merge_band_limit"):
+        _module().parse_variant("merge_band_limit=three", base)
 
 
 def test_a_bad_layout_key_is_refused_before_anything_renders():
