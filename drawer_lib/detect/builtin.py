@@ -19,8 +19,6 @@ import torch
 import torch.nn.functional as F
 from jaxtyping import Bool, Float, Int, UInt8
 from scipy import ndimage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from torch import Tensor, nn
 
 from drawer_lib.detect.config import BuiltinDetectConfig
@@ -242,18 +240,13 @@ def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray,
         return lab
     pairs, inv = np.unique(key, return_inverse=True)
     mean = np.bincount(inv, weights=np.concatenate(vals)) / np.bincount(inv)
-    if carried is None or band_max <= max_mean:
-        weak = pairs[mean < max_mean]
-        graph = coo_matrix((np.ones(len(weak)), (weak // n, weak % n)), shape=(n, n))
-        _, comp = connected_components(graph, directed=False)
-        smallest = np.full(comp.max() + 1, n)
-        np.minimum.at(smallest, comp, np.arange(n))
-        return smallest[comp][lab]
-    if len(carried) != n:
+    band = band_max if carried is not None else max_mean  # no counts: the plain threshold
+    if carried is not None and len(carried) != n:
         raise ValueError(f"merge_weak_boundaries: carried has {len(carried)} entries, labels 0..{n - 1}")
-    # union-find over the few region pairs (tens), weakest boundary first; ties by pair key
+    # union-find over the few region pairs (tens), weakest boundary first (ties by pair key); a
+    # root is always its component's smallest label
     parent = list(range(n))
-    load = [int(c) for c in carried]
+    load = [0] * n if carried is None else [int(c) for c in carried]
 
     def root(i: int) -> int:
         while parent[i] != i:
@@ -262,7 +255,7 @@ def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray,
         return i
 
     for k in np.lexsort((pairs, mean)):
-        if mean[k] >= band_max:
+        if mean[k] >= max(max_mean, band):
             break
         ra, rb = root(int(pairs[k] // n)), root(int(pairs[k] % n))
         if ra == rb or (mean[k] >= max_mean and load[ra] + load[rb] > limit):
