@@ -80,6 +80,7 @@ BENCH = {
     "rows": "rows.json",  # in eval/<split>/: each kitchen's scores
     "detector": "detector",  # the built-in 2D detector trained on the train split's renders
     "detector_weights": "detector/weights.pt",
+    "detector_score": "detector_score",  # the detector scored as the pipeline decodes it (detect.builtin)
     "detector_fits": "detector_fits",  # one folder per fit: <seed>/ with weights.pt, curve.csv, metrics.json
     "detector_fit_weights": "weights.pt",  # in detector_fits/<seed>/
 }
@@ -194,6 +195,10 @@ class BenchPaths:
     @property
     def detector_weights(self) -> Path:
         return Path(self.root) / BENCH["detector_weights"]
+
+    @property
+    def detector_score(self) -> Path:
+        return Path(self.root) / BENCH["detector_score"]
 
     def detector_fit(self, seed: int) -> Path:
         """One fit of the built-in detector: ``detector_fits/<seed>/`` (its ``weights.pt``,

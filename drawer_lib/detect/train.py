@@ -303,3 +303,35 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
             "fronts_2d_precision_test": s["precision"], "fronts_2d_recall_test": s["recall"],
             "fronts_2d_precision_test_members": [f.get("fronts_2d_precision_test") for _, f in fits],
             "fronts_2d_recall_test_members": [f.get("fronts_2d_recall_test") for _, f in fits]}
+
+
+def run_score_detector(cfg: DetectorTrainConfig, dc: BuiltinDetectConfig, base_scene: dict, render: RenderConfig,
+                       weights: Path, run: StageRun) -> dict:
+    """The detector later stages read (``weights``, the ``detector`` stage's file) scored as they
+    decode it (the ``detector_score`` stage): 2D instance precision / recall of its fronts on the
+    test split's kitchens ``cfg.eval_kitchens`` (every ``cfg.frame_every``-th view, matched at IoU
+    ``cfg.iou_match``) decoded with ``dc`` (``detect.builtin``), and beside it with the fixed
+    decoding the fits are scored with (the library's defaults at ``cfg.working_size``), both from
+    one pass of the network. A decoding change reruns this stage only, never a fit. A missing
+    file, or one made at another working size than ``dc``'s, is an :class:`InputError`."""
+    if not Path(weights).is_file():
+        raise InputError(f"{weights}: the built-in detector is missing (run `dvc repro detector`)")
+    model, info = load_detector(weights)
+    if info.get("working_size") != dc.working_size:
+        raise InputError(f"{weights}: fitted at working size {info.get('working_size')}, but detect.builtin.working_size "
+                         f"= {dc.working_size}")
+    t0 = time.perf_counter()
+    views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
+    render_s = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    probs = [(class_probs(model, v.rgb, dc.working_size), v.fronts)
+             for v in run.progress(views, desc="detect test views", total=len(views))]
+    infer_s = time.perf_counter() - t1
+    used = score_probs(probs, dc, cfg.iou_match)
+    fit = score_probs(probs, BuiltinDetectConfig(working_size=cfg.working_size), cfg.iou_match)
+    return {"eval_kitchens": list(cfg.eval_kitchens), "test_views": len(views), "render_s": round(render_s, 2),
+            "infer_s": round(infer_s, 2), "merge_edge": dc.merge_edge,
+            "fronts_2d_precision_test": used["precision"], "fronts_2d_recall_test": used["recall"],
+            "fronts_true": used["fronts_true"], "fronts_pred": used["fronts_pred"], "fronts_matched": used["fronts_matched"],
+            "fronts_2d_precision_test_fit_decoding": fit["precision"], "fronts_2d_recall_test_fit_decoding": fit["recall"],
+            "fronts_pred_fit_decoding": fit["fronts_pred"], "fronts_matched_fit_decoding": fit["fronts_matched"]}

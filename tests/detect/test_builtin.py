@@ -410,6 +410,26 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     assert m3["average_steps"] == 4 and m3["train_views"] == 3 and m3["test_views"] == 3
     assert m3["fronts_2d_recall_test_members"] == each[:1] and "fronts_2d_recall_test" in m3
     assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,seed,loss"
+    # the detector_score stage: that detector as the pipeline decodes it, the fits' decoding beside it
+    ds = tmp_path / "bench" / "detector_score"
+    r = run_stage("detector_score", tmp_path, *short, "detect.builtin.merge_edge=0.5")  # the library's: both the same
+    assert r.returncode == 0, r.stderr[-3000:]
+    s5 = json.loads((ds / "metrics.json").read_text())
+    assert s5["test_views"] == 3 and s5["merge_edge"] == 0.5 and s5["wall_s"] > 0
+    assert s5["fronts_2d_recall_test"] == s5["fronts_2d_recall_test_fit_decoding"] == m3["fronts_2d_recall_test"]
+    assert s5["fronts_2d_precision_test_fit_decoding"] == m3["fronts_2d_precision_test"]
+    r = run_stage("detector_score", tmp_path, *short, "detect.builtin.merge_edge=0.0", "detect.builtin.min_score=0.0",
+                  "detect.builtin.min_area_px=1")
+    assert r.returncode == 0, r.stderr[-3000:]
+    s0 = json.loads((ds / "metrics.json").read_text())
+    assert s0["merge_edge"] == 0.0 and s0["fronts_2d_recall_test_fit_decoding"] == m3["fronts_2d_recall_test"]
+    assert s0["fronts_pred"] >= s0["fronts_pred_fit_decoding"]  # no merging, no score floor: at least as many fronts
+    r = run_stage("detector_score", tmp_path, *short, "detect.builtin.working_size=128")
+    assert r.returncode != 0 and "working size 256" in r.stderr and "detect.builtin.working_size = 128" in r.stderr
+    assert json.loads((ds / "metrics.json").read_text()) == s0  # what was computed is kept
+    r = run_stage("detector_score", tmp_path / "elsewhere", *short)
+    assert r.returncode != 0 and "the built-in detector is missing" in r.stderr and "dvc repro detector" in r.stderr
+    assert not (tmp_path / "elsewhere" / "bench" / "detector_score").exists()
     sp = scene_paths(tmp_path)
     shutil.copytree(exact_capture[0], sp.capture)
     r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.builtin.min_score=0.0", "detect.builtin.min_area_px=1")
