@@ -215,6 +215,12 @@ def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig,
     return out
 
 
+def fit_decoding(cfg: DetectorTrainConfig) -> BuiltinDetectConfig:
+    """The fixed decoding the fits and the ``detector`` stage are scored with (the library's
+    defaults at the fit's working size), so their figures do not move when ``detect.builtin`` does."""
+    return BuiltinDetectConfig(working_size=cfg.working_size)
+
+
 def fit_info(cfg: DetectorTrainConfig) -> dict:
     """What a fit's ``weights.pt`` records of the settings it was made with (its ``info``), which
     the ``detector`` stage holds against ``detector.*`` before using the fit."""
@@ -238,7 +244,7 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     t1 = time.perf_counter()
     model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress)
     train_s = time.perf_counter() - t1
-    dc = BuiltinDetectConfig(working_size=cfg.working_size)
+    dc = fit_decoding(cfg)
     save_detector(run.dir / BENCH["detector_fit_weights"], model, fit_info(cfg))
     m = {"train_views": len(train_views), "test_views": len(test_views), "render_s": round(render_s, 2),
          "train_s": round(train_s, 2), "final_loss": round(losses[-1], 4),
@@ -297,7 +303,7 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     t0 = time.perf_counter()
     test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     m["render_s"] = round(time.perf_counter() - t0, 2)
-    s = score_views(model, test_views, BuiltinDetectConfig(working_size=cfg.working_size), cfg.iou_match)
+    s = score_views(model, test_views, fit_decoding(cfg), cfg.iou_match)
     return {**m, "test_views": len(test_views),
             "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4),
             "fronts_2d_precision_test": s["precision"], "fronts_2d_recall_test": s["recall"],
@@ -311,7 +317,7 @@ def run_score_detector(cfg: DetectorTrainConfig, dc: BuiltinDetectConfig, base_s
     decode it (the ``detector_score`` stage): 2D instance precision / recall of its fronts on the
     test split's kitchens ``cfg.eval_kitchens`` (every ``cfg.frame_every``-th view, matched at IoU
     ``cfg.iou_match``) decoded with ``dc`` (``detect.builtin``), and beside it with the fixed
-    decoding the fits are scored with (the library's defaults at ``cfg.working_size``), both from
+    decoding the fits are scored with (:func:`fit_decoding`), both from
     one pass of the network. A decoding change reruns this stage only, never a fit. A missing
     file, or one made at another working size than ``dc``'s, is an :class:`InputError`."""
     if not Path(weights).is_file():
@@ -328,7 +334,7 @@ def run_score_detector(cfg: DetectorTrainConfig, dc: BuiltinDetectConfig, base_s
              for v in run.progress(views, desc="detect test views", total=len(views))]
     infer_s = time.perf_counter() - t1
     used = score_probs(probs, dc, cfg.iou_match)
-    fit = score_probs(probs, BuiltinDetectConfig(working_size=cfg.working_size), cfg.iou_match)
+    fit = score_probs(probs, fit_decoding(cfg), cfg.iou_match)
     return {"eval_kitchens": list(cfg.eval_kitchens), "test_views": len(views), "render_s": round(render_s, 2),
             "infer_s": round(infer_s, 2), "merge_edge": dc.merge_edge,
             "fronts_2d_precision_test": used["precision"], "fronts_2d_recall_test": used["recall"],
