@@ -6,6 +6,7 @@ from typing import Any, ClassVar
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.hub import HubModel
+from drawer_lib.synth.config import LAYOUT_KEYS
 
 DETECT_MODELS = ("auto", "capture", "none", "builtin", "owlv2_sam")
 PRIORS_MODELS = ("auto", "capture", "none", "depth_anything")
@@ -123,10 +124,15 @@ class DetectorTrainConfig:
     ``average_steps`` > 0: the ``detector`` stage trains each fit on for that many steps more
     (Adam afresh, its rate raised linearly to ``average_lr`` over ``average_warmup`` steps, then
     held) and takes the mean of its weights over every step after the warm-up (stochastic
-    weight averaging: :func:`drawer_lib.detect.train.average_fit`); 0: each fit as it is."""
+    weight averaging: :func:`drawer_lib.detect.train.average_fit`); 0: each fit as it is.
+    ``average_layout``: keys of a layout block merged over each fit kitchen's (after ``layout``)
+    for a second rendering of it that only the averaging trains on, beside the first: the
+    averaging draws its crops from both (domain randomisation after the fit, which stays as it
+    is; empty: none, the averaging sees what the fit saw)."""
 
     # keys only the ``detector`` stage reads, never a fit: changing them must not refit
-    NOT_FIT_KEYS: ClassVar[frozenset[str]] = frozenset({"seeds", "average_steps", "average_lr", "average_warmup"})
+    NOT_FIT_KEYS: ClassVar[frozenset[str]] = frozenset({"seeds", "average_steps", "average_lr", "average_warmup",
+                                                     "average_layout"})
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
@@ -147,6 +153,7 @@ class DetectorTrainConfig:
     average_steps: int = 1000
     average_lr: float = 1e-3
     average_warmup: int = 100
+    average_layout: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.kitchens:
@@ -161,6 +168,13 @@ class DetectorTrainConfig:
         if self.average_steps < 0 or self.average_warmup < 0 or 0 < self.average_steps <= self.average_warmup:
             raise ConfigError(f"detector.average_steps = {self.average_steps}, average_warmup = {self.average_warmup}: "
                               "need steps >= 0 and 0 <= warmup < steps (steps 0: no averaging)")
+        for name in ("layout", "average_layout"):
+            unknown = set(getattr(self, name)) - LAYOUT_KEYS
+            if unknown:
+                raise ConfigError(f"detector.{name}: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
+        if self.average_layout and not self.average_steps:
+            raise ConfigError(f"detector.average_layout = {dict(self.average_layout)} needs detector.average_steps > 0 "
+                              "(only the averaging trains on it)")
         if not self.average_lr > 0:
             raise ConfigError(f"detector.average_lr = {self.average_lr}: must be > 0")
         if self.crop > self.working_size:

@@ -26,7 +26,7 @@ from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.metrics.detections import match_fronts
 from drawer_lib.paths import BENCH, LAYOUT, bench_name
 from drawer_lib.runner import Curve, StageRun
-from drawer_lib.synth.config import LAYOUT_KEYS, RenderConfig
+from drawer_lib.synth.config import RenderConfig
 
 
 @dataclass
@@ -204,12 +204,16 @@ def stage_inputs(cfg) -> tuple[DetectorTrainConfig, dict, RenderConfig]:
 
 
 def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, split: str, kitchens: list[int],
-               run: StageRun) -> list[View]:
+               run: StageRun, extra_layout: dict | None = None) -> list[View]:
     """Every ``cfg.frame_every``-th view of ``split``'s kitchens, rendered and labelled (the
-    train split's with ``cfg.layout`` merged over each kitchen's, never the scored ones)."""
+    train split's with ``cfg.layout``, then ``extra_layout``, merged over each kitchen's; never
+    the scored ones)."""
+    if split != "train" and extra_layout:
+        raise ValueError(f"_fit_views: a layout over the {split} split's kitchens")
+    layout = {**cfg.layout, **(extra_layout or {})} if split == "train" else None
     out = []
     for k in run.progress(kitchens, desc=f"render {split}", total=len(kitchens)):
-        synth = kitchen_scene(base_scene, split, k, layout=cfg.layout if split == "train" else None).synth
+        synth = kitchen_scene(base_scene, split, k, layout=layout).synth
         frames = list(range(0, synth.camera.n_frames, cfg.frame_every))
         out += list(render_views(synth, render, frames, cfg.edge_px))
     return out
@@ -233,9 +237,6 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     split's kitchens ``cfg.kitchens``, fit from ``seed``, write ``weights.pt`` and ``curve.csv``
     (loss against time), and score it on the train views and on the test split's kitchens
     ``cfg.eval_kitchens``, which it never saw."""
-    unknown = set(cfg.layout) - LAYOUT_KEYS
-    if unknown:
-        raise ConfigError(f"detector.layout: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
     t0 = time.perf_counter()
     train_views = _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
     test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
@@ -262,7 +263,9 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     """The built-in detector the later stages read (the ``detector`` stage): the fits of
     ``cfg.seeds`` (``fit_dirs``, one ``detector_fit@<seed>`` folder each, in that order) as one
     ``weights.pt``, each fit's weights averaged over ``cfg.average_steps`` further steps first
-    (:func:`average_fit`, its loss in ``curve.csv``) when that is > 0. One fit, not averaged:
+    (:func:`average_fit`, its loss in ``curve.csv``) when that is > 0 (on the train kitchens'
+    views, and with ``cfg.average_layout`` on those kitchens rendered once more with it). One
+    fit, not averaged:
     its file, copied byte for byte, and its figures. Otherwise one file
     (:func:`~drawer_lib.detect.builtin.save_detector`; several fits an ensemble), scored again
     on the test split's kitchens ``cfg.eval_kitchens``, with each fit's own figures beside it.
@@ -293,11 +296,17 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     if cfg.average_steps:
         t0 = time.perf_counter()
         samples = [to_sample(v, cfg.working_size) for v in _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)]
-        m["train_views"], m["render_train_s"] = len(samples), round(time.perf_counter() - t0, 2)
+        m["train_views"] = len(samples)
+        if cfg.average_layout:  # the same kitchens once more, as average_layout draws them
+            samples += [to_sample(v, cfg.working_size)
+                        for v in _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run, cfg.average_layout)]
+            m["average_layout"], m["average_layout_views"] = dict(cfg.average_layout), len(samples) - m["train_views"]
+        m["render_train_s"] = round(time.perf_counter() - t0, 2)
         t1 = time.perf_counter()
         members = [average_fit(net, samples, cfg, seed, curve, run.progress) for net, seed in zip(members, cfg.seeds)]
         m["average_s"] = round(time.perf_counter() - t1, 2)
-        info["average"] = {"steps": cfg.average_steps, "lr": cfg.average_lr, "warmup": cfg.average_warmup}
+        info["average"] = {"steps": cfg.average_steps, "lr": cfg.average_lr, "warmup": cfg.average_warmup,
+                           **({"layout": dict(cfg.average_layout)} if cfg.average_layout else {})}
     save_detector(dst, members[0] if len(members) == 1 else members, info)
     model = members[0] if len(members) == 1 else DetectorEnsemble(members)
     t0 = time.perf_counter()

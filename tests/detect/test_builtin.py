@@ -31,11 +31,12 @@ from drawer_lib.detect.builtin import (
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, _crop_batch, average_fit, class_weights, fit_detector, pixel_accuracy
+from drawer_lib.detect.train import Sample, _crop_batch, _fit_views, average_fit, class_weights, fit_detector, pixel_accuracy
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
 from drawer_lib.metrics.detections import match_fronts
+from drawer_lib.synth.config import RenderConfig
 
 
 def _probs(cls: np.ndarray) -> np.ndarray:
@@ -410,6 +411,19 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     assert m3["average_steps"] == 4 and m3["train_views"] == 3 and m3["test_views"] == 3
     assert m3["fronts_2d_recall_test_members"] == each[:1] and "fronts_2d_recall_test" in m3
     assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,seed,loss"
+    # averaged over the fit kitchens rendered twice, the second time with thinner gaps between fronts
+    r = run_stage("detector", tmp_path / "gaps", *[a for a in short if not a.startswith("detector.average_steps=")],
+                  "detector.average_steps=4", "detector.average_warmup=1", "+detector.average_layout.front_gap=0.001")
+    assert r.returncode != 0 and "seed 0 is missing" in r.stderr  # its own folder holds no fit yet
+    shutil.copytree(fits, tmp_path / "gaps" / "bench" / "detector_fits")
+    r = run_stage("detector", tmp_path / "gaps", *[a for a in short if not a.startswith("detector.average_steps=")],
+                  "detector.average_steps=4", "detector.average_warmup=1", "+detector.average_layout.front_gap=0.001")
+    assert r.returncode == 0, r.stderr[-3000:]
+    mg = json.loads((tmp_path / "gaps" / "bench" / "detector" / "metrics.json").read_text())
+    assert mg["train_views"] == 3 and mg["average_layout_views"] == 3 and mg["average_layout"] == {"front_gap": 0.001}
+    gaps = torch.load(tmp_path / "gaps" / "bench" / "detector" / "weights.pt", weights_only=True)
+    assert gaps["info"]["average"] == {"steps": 4, "lr": 1e-3, "warmup": 1, "layout": {"front_gap": 0.001}}
+    assert not all(torch.equal(gaps["state_dict"][k], avg["state_dict"][k]) for k in one["state_dict"])
     # the detector_score stage: that detector as the pipeline decodes it, the fits' decoding beside it
     ds = tmp_path / "bench" / "detector_score"
     r = run_stage("detector_score", tmp_path, *short, "detect.builtin.merge_edge=0.5")  # the library's: both the same
