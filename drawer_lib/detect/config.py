@@ -6,7 +6,6 @@ from typing import Any, ClassVar
 
 from drawer_lib.errors import ConfigError
 from drawer_lib.hub import HubModel
-from drawer_lib.synth.config import LAYOUT_KEYS
 
 DETECT_MODELS = ("auto", "capture", "none", "builtin", "owlv2_sam")
 PRIORS_MODELS = ("auto", "capture", "none", "depth_anything")
@@ -117,7 +116,7 @@ class DetectorTrainConfig:
     keys of the kitchens' ``layout`` block (:class:`~drawer_lib.synth.config.LayoutConfig`)
     merged over each fit kitchen's, never over the kitchens it is scored on: domain
     randomisation, the fit drawing sizes and handle rates the train split does not (its keys
-    are checked when the fit starts, :func:`drawer_lib.detect.train.run_fit_detector`).
+    are checked when a stage starts, :func:`drawer_lib.detect.train.check_layouts`).
     ``seeds``: one fit from each seed (the ``detector_fit@<seed>`` stage each, cached apart, so
     adding a seed fits only that one), averaged as one ensemble whose class probabilities are
     their mean (the ``detector`` stage); a fit reads only its own seed, never this list.
@@ -168,10 +167,6 @@ class DetectorTrainConfig:
         if self.average_steps < 0 or self.average_warmup < 0 or 0 < self.average_steps <= self.average_warmup:
             raise ConfigError(f"detector.average_steps = {self.average_steps}, average_warmup = {self.average_warmup}: "
                               "need steps >= 0 and 0 <= warmup < steps (steps 0: no averaging)")
-        for name in ("layout", "average_layout"):
-            unknown = set(getattr(self, name)) - LAYOUT_KEYS
-            if unknown:
-                raise ConfigError(f"detector.{name}: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
         if self.average_layout and not self.average_steps:
             raise ConfigError(f"detector.average_layout = {dict(self.average_layout)} needs detector.average_steps > 0 "
                               "(only the averaging trains on it)")

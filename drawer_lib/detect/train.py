@@ -26,7 +26,7 @@ from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.metrics.detections import match_fronts
 from drawer_lib.paths import BENCH, LAYOUT, bench_name
 from drawer_lib.runner import Curve, StageRun
-from drawer_lib.synth.config import RenderConfig
+from drawer_lib.synth.config import LAYOUT_KEYS, RenderConfig
 
 
 @dataclass
@@ -219,6 +219,15 @@ def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig,
     return out
 
 
+def check_layouts(cfg: DetectorTrainConfig) -> None:
+    """A :class:`ConfigError` naming any key of ``cfg.layout`` or ``cfg.average_layout`` that is
+    not a field of a kitchen's layout block, before a stage does any work."""
+    for name in ("layout", "average_layout"):
+        unknown = set(getattr(cfg, name)) - LAYOUT_KEYS
+        if unknown:
+            raise ConfigError(f"detector.{name}: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
+
+
 def fit_decoding(cfg: DetectorTrainConfig) -> BuiltinDetectConfig:
     """The fixed decoding the fits and the ``detector`` stage are scored with (the library's
     defaults at the fit's working size), so their figures do not move when ``detect.builtin`` does."""
@@ -237,6 +246,7 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     split's kitchens ``cfg.kitchens``, fit from ``seed``, write ``weights.pt`` and ``curve.csv``
     (loss against time), and score it on the train views and on the test split's kitchens
     ``cfg.eval_kitchens``, which it never saw."""
+    check_layouts(cfg)
     t0 = time.perf_counter()
     train_views = _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
     test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
@@ -271,6 +281,7 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     on the test split's kitchens ``cfg.eval_kitchens``, with each fit's own figures beside it.
     A missing fit, or one fitted with other settings than ``cfg``, is an :class:`InputError`
     naming it."""
+    check_layouts(cfg)
     if len(fit_dirs) != len(cfg.seeds):
         raise ValueError(f"run_combine_detector: {len(fit_dirs)} fit folders for detector.seeds = {list(cfg.seeds)}")
     want = fit_info(cfg)

@@ -31,11 +31,12 @@ from drawer_lib.detect.builtin import (
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, _crop_batch, _fit_views, average_fit, class_weights, fit_detector, pixel_accuracy
+from drawer_lib.detect.train import Sample, _crop_batch, _fit_views, average_fit, check_layouts, class_weights, fit_detector, pixel_accuracy
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
 from drawer_lib.metrics.detections import match_fronts
+from drawer_lib.runner import StageRun
 from drawer_lib.synth.config import RenderConfig
 
 
@@ -358,6 +359,13 @@ def test_the_fit_kitchens_take_the_layout_keys_and_the_scored_ones_do_not(tmp_pa
                   "+detector.layout.module_width=[0.3]")
     assert r.returncode != 0 and "detector.layout: unknown keys ['module_width']" in r.stderr
     assert not (tmp_path / "bench" / "detector_fits" / "0").exists()
+    with pytest.raises(ConfigError, match=r"detector.average_layout: unknown keys \['gap'\]"):
+        check_layouts(DetectorTrainConfig(average_layout={"gap": 0.001}))
+    with pytest.raises(ConfigError, match="needs detector.average_steps > 0"):
+        DetectorTrainConfig(average_layout={"front_gap": 0.001}, average_steps=0)
+    with pytest.raises(ValueError, match="a layout over the test split's kitchens"):
+        _fit_views(DetectorTrainConfig(), base, RenderConfig(), "test", [0], StageRun("detector", tmp_path, tmp_path, 0),
+                   {"front_gap": 0.001})
 
 
 def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):

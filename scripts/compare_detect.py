@@ -1,0 +1,88 @@
+"""Two settings of ``scripts/bench_detect.py`` compared on the same kitchens: each one's pooled
+parts precision / recall / F1 (found / predicted), its mean EA-score, and the change with a 90 %
+interval from resampling the kitchens (paired: both settings on the same draws;
+``drawer_lib.bench.resample``). Pairs of summaries, each ``BASE OTHER`` (the ``summary-TAG.json``
+files bench_detect writes) on the same kitchens, are compared one by one and then pooled (their
+kitchens together, still paired).
+
+    python scripts/compare_detect.py OUT/gapdense/train/summary-cur.json OUT/gapdense/train/summary-g1.json
+    python scripts/compare_detect.py A/summary-cur.json A/summary-g1.json B/summary-cur.json B/summary-g1.json --json out.json
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from drawer_lib.bench.resample import pooled_prf, resample_kitchens
+
+
+def counts(path: Path, model: str) -> tuple[list[int], np.ndarray, list[float]]:
+    """(kitchens, [K, 3] found / predicted / true, EA-scores) of ``model`` in a bench_detect summary."""
+    try:
+        summ = json.loads(path.read_text())
+        rows = [(r["kitchen"], r[model]) for r in summ["rows"]]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise SystemExit(f"error: {path}: not a bench_detect summary with model {model!r} ({e.__class__.__name__}: {e})")
+    c = np.array([[m["n_correct"], m["n_pred"], m["n_gt"]] for _, m in rows], dtype=np.int64).reshape(-1, 3)
+    return [k for k, _ in rows], c, [m["ea_score"] for _, m in rows if m.get("ea_score") is not None]
+
+
+def compare(base: np.ndarray, other: np.ndarray, ea: tuple[list[float], list[float]], draws: int, seed: int) -> dict:
+    iv = resample_kitchens(base, other, draws=draws, seed=seed)
+    out = {}
+    for name, c, e in (("base", base, ea[0]), ("other", other, ea[1])):
+        p, r, f1 = pooled_prf(c)
+        out[name] = {"precision": float(p), "recall": float(r), "f1": float(f1), "found": int(c[:, 0].sum()),
+                     "predicted": int(c[:, 1].sum()), "true": int(c[:, 2].sum()),
+                     "ea_mean": float(np.mean(e)) if e else None, "interval": iv[name]}
+    out["change"] = {k: out["other"][k] - out["base"][k] for k in ("precision", "recall", "f1")}
+    out["change"]["interval"] = iv["change"]
+    out["kitchens"] = len(base)
+    return out
+
+
+def line(label: str, r: dict) -> str:
+    def one(s: dict) -> str:
+        ea = "–" if s["ea_mean"] is None else f"{s['ea_mean']:.2f}"
+        return (f"{s['precision']:.3f} / {s['recall']:.3f} ({s['found']} / {s['predicted']}), F1 {s['f1']:.3f}, EA {ea}")
+    c, iv = r["change"], r["change"]["interval"]
+    ch = "; ".join(f"{k} {c[k]:+.3f} [{iv[k][0]:+.3f}, {iv[k][1]:+.3f}]" for k in ("precision", "recall", "f1"))
+    return f"| {label} | {r['base']['true']} | {one(r['base'])} | {one(r['other'])} | {ch} |"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("summaries", type=Path, nargs="+", help="BASE OTHER [BASE OTHER ...]")
+    ap.add_argument("--model", default="builtin", help="the --detect model compared (default: builtin)")
+    ap.add_argument("--draws", type=int, default=5000)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    a = ap.parse_args()
+    if len(a.summaries) % 2:
+        raise SystemExit(f"error: {len(a.summaries)} summaries; pairs BASE OTHER are needed")
+    pairs, results = [], {}
+    for b, o in zip(a.summaries[::2], a.summaries[1::2]):
+        kb, cb, eb = counts(b, a.model)
+        ko, co, eo = counts(o, a.model)
+        if kb != ko:
+            raise SystemExit(f"error: {b} scores kitchens {kb}, {o} {ko}: compare the same kitchens")
+        pairs.append((cb, co, eb, eo))
+        results[f"{b} -> {o}"] = compare(cb, co, (eb, eo), a.draws, a.seed)
+    print("| summaries | parts | base: precision / recall (found / predicted), F1, EA | other | change, 90 % interval |\n"
+          "|---|---|---|---|---|")
+    for label, r in results.items():
+        print(line(label, r))
+    if len(pairs) > 1:
+        cat = [np.concatenate([p[i] for p in pairs]) for i in (0, 1)]
+        results["pooled"] = compare(cat[0], cat[1], (sum((p[2] for p in pairs), []), sum((p[3] for p in pairs), [])),
+                                    a.draws, a.seed)
+        print(line("pooled", results["pooled"]))
+    if a.json:
+        a.json.write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
