@@ -48,6 +48,7 @@ from drawer_lib.bench.cli import parse_layout
 from drawer_lib.bench.config import BenchConfig
 from drawer_lib.bench.evaluate import score_kitchen
 from drawer_lib.bench.fit import fit_decisions, labelled_fronts
+from drawer_lib.bench.resample import pooled_prf
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.capture.build import build_capture
 from drawer_lib.capture.config import CaptureConfig
@@ -200,10 +201,11 @@ def summarise(rows: list[dict], models: list[str]) -> dict:
     for m in models:
         rs = [r[m] for r in rows]
         corr, pred, gt = (sum(r[k] for r in rs) for k in ("n_correct", "n_pred", "n_gt"))
+        prec, rec, _ = (None if np.isnan(x) else float(x) for x in pooled_prf(np.array([[corr, pred, gt]])))
         eas = [r["ea_score"] for r in rs if r["ea_score"] is not None]
         p2 = [r["parts_2d_precision"] for r in rs if r["parts_2d_precision"] is not None]
         r2 = [r["parts_2d_recall"] for r in rs if r["parts_2d_recall"] is not None]
-        out[m] = {"precision_pooled": corr / pred if pred else None, "recall_pooled": corr / gt if gt else None,
+        out[m] = {"precision_pooled": prec, "recall_pooled": rec,
                   "precision_mean": float(np.mean([r["precision"] for r in rs if r["precision"] is not None])),
                   "recall_mean": float(np.mean([r["recall"] for r in rs])),
                   "precision_worst": float(min(r["precision"] if r["precision"] is not None else 0.0 for r in rs)),

@@ -11,7 +11,6 @@ kitchens together, still paired).
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -85,4 +84,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()
