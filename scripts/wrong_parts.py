@@ -4,10 +4,14 @@ it left (nothing is rerun): for each predicted articulated part that precision c
 one of ``wrong_kind`` (on a true front, another joint kind), ``off_front`` (touching one true
 front, IoU under the match threshold: split from it or mis-sized), ``merged`` (touching two or
 more) or ``no_front`` (:func:`drawer_lib.metrics.articulation.wrong_parts`), and the commonest
-(true kind -> predicted kind) pairs of the wrongly typed. Look only at kitchens you tune on.
+(true kind -> predicted kind) pairs of the wrongly typed. With ``--decisions``, each wrongly typed
+part is listed with what articulate recorded for its front in ``decisions.json``: its size (m),
+the score margin over the runner-up, the handle's orientation, the hypotheses excluded, the
+reason. Look only at kitchens you tune on.
 
     python scripts/wrong_parts.py OUT/train --tag swa                  # by_detector/builtin-swa/
     python scripts/wrong_parts.py OUT1/train OUT2/train --model capture
+    python scripts/wrong_parts.py OUT/train --tag swa --decisions      # and why each wrong type won
 """
 
 import argparse
@@ -21,9 +25,22 @@ from drawer_lib.metrics.articulation import WRONG_WHY, match_parts, wrong_parts
 from drawer_lib.paths import ScenePaths, capture_name
 
 
-def split_rows(split_dir: Path, folder: str) -> list[dict]:
+def decision_fields(segment: dict | None) -> dict:
+    """What a front's entry in articulate's ``decisions.json`` says about its type: ``size``
+    ([w, h] m), ``margin`` (its score over the runner-up's), ``runner_up``, ``handle`` (the
+    handle's orientation, None without one), ``excluded`` (the hypotheses ruled out) and
+    ``reason``; ``{"decision": None}`` when the part has no entry."""
+    if segment is None:
+        return {"decision": None}
+    return {"size": segment.get("size"), "margin": segment.get("margin"), "runner_up": segment.get("runner_up"),
+            "handle": (segment.get("handle") or {}).get("orientation"),
+            "excluded": sorted(segment.get("excluded") or {}), "reason": segment.get("reason")}
+
+
+def split_rows(split_dir: Path, folder: str, decisions: bool = False) -> list[dict]:
     """The wrong parts of every built kitchen of ``split_dir`` scored from ``by_detector/<folder>``,
-    each with its ``kitchen``."""
+    each with its ``kitchen``; with ``decisions``, the wrongly typed ones with
+    :func:`decision_fields` of their front."""
     kitchens = sorted(split_dir.glob("kitchen_*"), key=lambda p: int(p.name.split("_")[-1]))
     if not kitchens:
         raise SystemExit(f"error: {split_dir}: no kitchen_* folders (a bench_detect --out DIR writes DIR/<split>/)")
@@ -34,7 +51,14 @@ def split_rows(split_dir: Path, folder: str) -> list[dict]:
         if not pred.is_file():
             raise SystemExit(f"error: {pred}: missing (was bench_detect run with this --tag and model?)")
         m = match_parts(read_parts(pred), read_parts(sp.capture / capture_name("gt_parts")))
-        rows += [{"kitchen": k.name, **r} for r in wrong_parts(m)]
+        found = [{"kitchen": k.name, **r} for r in wrong_parts(m)]
+        if decisions and any(r["why"] == "wrong_kind" for r in found):
+            path = ScenePaths(k / "by_detector", folder).file("articulate", "decisions")
+            if not path.is_file():
+                raise SystemExit(f"error: {path}: missing (--decisions reads articulate's record of each front)")
+            by_part = {s["part"]: s for s in json.loads(path.read_text())["segments"] if s.get("part")}
+            found = [{**r, **decision_fields(by_part.get(r["part"]))} if r["why"] == "wrong_kind" else r for r in found]
+        rows += found
     return rows
 
 
@@ -45,11 +69,13 @@ def main() -> None:
     ap.add_argument("--tag", default="", help="the bench_detect --tag of the run")
     ap.add_argument("--top", type=int, default=10, help="how many (true -> predicted) pairs to list")
     ap.add_argument("--json", type=Path, help="also write every wrong part here")
+    ap.add_argument("--decisions", action="store_true",
+                    help="list each wrongly typed part with what decisions.json recorded for its front")
     a = ap.parse_args()
     folder = variant(a.model, a.tag)
     everything = []
     for d in a.splits:
-        rows = split_rows(d, folder)
+        rows = split_rows(d, folder, a.decisions)
         c = collections.Counter(r["why"] for r in rows)
         print(f"{d} ({folder}): {len(rows)} wrong: " + ", ".join(f"{w} {c[w]}" for w in WRONG_WHY))
         everything += [{"split": str(d), **r} for r in rows]
@@ -57,6 +83,16 @@ def main() -> None:
     print(f"all: {len(everything)} wrong, {sum(typed.values())} of them wrongly typed; true -> predicted:")
     for (g, p), n in typed.most_common(a.top):
         print(f"  {n:3d}  {g} -> {p}")
+    if a.decisions:
+        print("wrongly typed, by true -> predicted kind:")
+        for r in sorted((r for r in everything if r["why"] == "wrong_kind"), key=lambda r: (r["gt_kind"], r["pred_kind"])):
+            where = f"  {r['gt_kind']} -> {r['pred_kind']}  {r['split']} {r['kitchen']} {r['part']}:"
+            if r.get("decision", 1) is None:
+                print(f"{where} no decision recorded")
+                continue
+            w, h = r["size"] or (float("nan"), float("nan"))
+            print(f"{where} {w:.2f} x {h:.2f} m, margin {r['margin']:.2f} over {r['runner_up']}, handle {r['handle']}"
+                  + (f", excluded {', '.join(r['excluded'])}" if r["excluded"] else "") + f"; {r['reason']}")
     if a.json:
         a.json.write_text(json.dumps(everything, indent=1))
 

@@ -153,14 +153,14 @@ def wrong_parts(m: Matching) -> list[dict]:
     touching two or more true fronts: IoU > TOUCH_IOU), ``off_front`` (unmatched, touching one:
     split from it or mis-sized) or ``no_front`` (touching none); with ``pred_kind`` and, for the
     first three, ``gt_kind`` (:func:`part_kind` names; of the best-overlapping true front when
-    unmatched) and ``iou`` to it."""
+    unmatched) and ``iou`` to it; ``part`` is the predicted part's id."""
     matched = {i: (j, o) for i, j, o in m.pairs}
     skip = set(m.ignored) | {i for i, _, _ in m.correct}
     out = []
     for i, p in enumerate(m.pred):
         if i in skip:
             continue
-        row = {"pred_kind": part_kind(p)}
+        row = {"part": p.id, "pred_kind": part_kind(p)}
         if i in matched:
             j, o = matched[i]
             row.update(why="wrong_kind", gt_kind=part_kind(m.gt[j]), iou=float(o))

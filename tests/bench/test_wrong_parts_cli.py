@@ -41,3 +41,30 @@ def test_counts_per_split_and_the_commonest_confusion(tmp_path):
     assert r.returncode != 0 and "by_detector/builtin/articulate/parts.json: missing" in r.stderr
     r = _run(tmp_path / "nothing")
     assert r.returncode != 0 and "no kitchen_* folders" in r.stderr
+
+
+def test_decisions_list_each_wrongly_typed_part_with_its_record(tmp_path):
+    """--decisions joins each wrongly typed part to its front's entry in decisions.json (by part
+    id); a kitchen with a wrong type and no decisions.json is a clear error."""
+    split = tmp_path / "train"
+    root = split / "kitchen_16"
+    (root / "capture" / "gt").mkdir(parents=True)
+    write_parts(root / "capture" / "gt" / "parts.json", PartsFile((_door("d0", 0.0),), ()))
+    art = root / "by_detector" / "builtin-t" / "articulate"
+    art.mkdir(parents=True)
+    write_parts(art / "parts.json", PartsFile((_door("drawer_0", 0.0, "prismatic"), _door("door_9", 3.0)), ()))
+    r = _run(split, "--tag", "t", "--decisions")
+    assert r.returncode != 0 and "decisions.json: missing" in r.stderr
+    seg = {"segment": 4, "part": "drawer_0", "size": [0.5, 0.7], "margin": 0.25, "runner_up": "door_left",
+           "handle": {"orientation": "horizontal"}, "excluded": {"sliding": "no track"}, "reason": "score 2.0 (next best door_left 1.75)"}
+    (art / "decisions.json").write_text(json.dumps({"estimator": "geometric", "segments": [{"segment": 1, "family": "none"}, seg]}))
+    r = _run(split, "--tag", "t", "--decisions", "--json", tmp_path / "wrong.json")
+    assert r.returncode == 0, r.stderr
+    assert ("revolute -> prismatic  " in r.stdout and "kitchen_16 drawer_0: 0.50 x 0.70 m, margin 0.25 over door_left, "
+            "handle horizontal, excluded sliding; score 2.0 (next best door_left 1.75)" in r.stdout)
+    typed, nowhere = json.loads((tmp_path / "wrong.json").read_text())
+    assert typed["part"] == "drawer_0" and typed["margin"] == 0.25 and typed["excluded"] == ["sliding"]
+    assert nowhere["why"] == "no_front" and nowhere["part"] == "door_9" and "margin" not in nowhere
+    (art / "decisions.json").write_text(json.dumps({"segments": [{"segment": 1, "family": "none"}]}))
+    r = _run(split, "--tag", "t", "--decisions")
+    assert r.returncode == 0 and "kitchen_16 drawer_0: no decision recorded" in r.stdout

@@ -76,6 +76,7 @@ def test_wrong_parts_say_why_each_counted_prediction_is_wrong():
     m = match_parts(pred, gt)
     rows = wrong_parts(m)
     assert [r["why"] for r in rows] == ["off_front", "merged", "no_front"]
+    assert [r["part"] for r in rows] == ["sliding_as_door", "merged", "nowhere"]
     assert rows[0]["gt_kind"] == "prismatic" and rows[0]["iou"] == pytest.approx(front_overlap(front(cx=0.59), g2))
     assert rows[1]["gt_kind"] == "revolute" and "gt_kind" not in rows[2]
     res, _ = articulation_metrics(pred, gt, [])
