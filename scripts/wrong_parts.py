@@ -56,7 +56,10 @@ def split_rows(split_dir: Path, folder: str, decisions: bool = False) -> list[di
             path = ScenePaths(k / "by_detector", folder).file("articulate", "decisions")
             if not path.is_file():
                 raise SystemExit(f"error: {path}: missing (--decisions reads articulate's record of each front)")
-            by_part = {s["part"]: s for s in json.loads(path.read_text())["segments"] if s.get("part")}
+            try:
+                by_part = {s["part"]: s for s in json.loads(path.read_text())["segments"] if s.get("part")}
+            except (ValueError, KeyError, TypeError, AttributeError) as e:
+                raise SystemExit(f"error: {path}: not an articulation decisions file ({e!r})") from None
             found = [{**r, **decision_fields(by_part.get(r["part"]))} if r["why"] == "wrong_kind" else r for r in found]
         rows += found
     return rows
@@ -87,7 +90,7 @@ def main() -> None:
         print("wrongly typed, by true -> predicted kind:")
         for r in sorted((r for r in everything if r["why"] == "wrong_kind"), key=lambda r: (r["gt_kind"], r["pred_kind"])):
             where = f"  {r['gt_kind']} -> {r['pred_kind']}  {r['split']} {r['kitchen']} {r['part']}:"
-            if r.get("decision", 1) is None:
+            if "reason" not in r:  # decision_fields found no entry for it
                 print(f"{where} no decision recorded")
                 continue
             w, h = r["size"] or (float("nan"), float("nan"))
