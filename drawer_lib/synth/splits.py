@@ -37,7 +37,7 @@ import copy
 
 import numpy as np
 
-SPLITS = ("train", "test", "hand")
+SPLITS = ("train", "test", "hand", "hand_tune")
 
 # the hand split: {seed, layout, camera} per kitchen (LayoutConfig.modules: [type, width m] left to right)
 HAND = [
@@ -106,15 +106,82 @@ HAND = [
      "camera": {"n_frames": 60, "width": 320, "height": 240}},
 ]
 
+
+# the hand_tune split: kitchens written by hand as the hand split's are, but to be tuned on (a
+# planner's catalogue widths and runs: 60 cm grids, pairs of singles where a double would do,
+# wide pan drawers, glass and sliding wall fronts); written without reading the hand split's
+# module lists
+def _ht(seed, base, wall, tall=None, cam=None, **layout):
+    modules = {"base": base, "wall": wall} | ({"tall": tall} if tall else {})
+    return {"seed": seed, "layout": {"modules": modules, "yaw_deg": [0.0, 0.0], "no_handle_p": 0.0, "microwaves": 0,
+                                     **layout},
+            "camera": dict(cam or _CAM_SMALL)}
+
+
 _CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
 _CAM_LARGE = {"n_frames": 60, "width": 320, "height": 240}
+
+HAND_TUNE = [
+    _ht(950, [["drawers", 0.6], ["door", 0.6], ["sink", 0.8], ["dishwasher", 0.6], ["oven", 0.6], ["drawers", 0.8]],
+        [["door", 0.6], ["door", 0.6], ["flap_up", 0.8], ["double_door", 0.8], ["door", 0.4]], [["right", "fridge2"]],
+        cam=_CAM_LARGE, handle_styles=["bar"], microwaves=1, yaw_deg=[8.0, 8.0], carcass_height=0.80,
+        plinth_height=0.08, base_depth=0.60, wall_bottom=1.50, wall_height=0.80, wall_depth=0.37, tall_height=2.20,
+        tall_width=0.60, front_gap=0.003, front_thickness=0.018),   # a family kitchen on a 60 cm grid
+    _ht(951, [["drawers", 0.9], ["sink", 0.9], ["dishwasher", 0.6], ["drawers", 0.6], ["drawer_door", 0.6]],
+        [["flap_up", 0.9], ["flap_up", 0.9], ["door", 0.6]], [["left", "pantry"]],
+        handle_styles=["recessed"], no_handle_p=0.2, carcass_height=0.78, plinth_height=0.12, base_depth=0.60,
+        wall_bottom=1.45, wall_height=0.60, wall_depth=0.35, tall_height=2.10, tall_width=0.60, front_gap=0.002,
+        front_thickness=0.019),                                      # handleless, pan drawers
+    _ht(952, [["door", 0.4], ["sink", 0.6], ["oven", 0.6], ["drawer_door", 0.4]],
+        [["door", 0.4], ["door", 0.4], ["door", 0.6], ["door", 0.4]],
+        handle_styles=["knob"], carcass_height=0.72, plinth_height=0.10, base_depth=0.56, wall_bottom=1.45,
+        wall_height=0.70, wall_depth=0.32, front_gap=0.004, front_thickness=0.016),   # a rented flat's 2 m run
+    _ht(953, [["double_door", 1.0], ["drawers", 0.5], ["sink", 1.0], ["double_door", 0.8]],
+        [["glass_double", 0.8], ["door", 0.5], ["double_door", 1.0], ["door", 0.5]],
+        handle_styles=["small_knob"], yaw_deg=[-20.0, -20.0], carcass_height=0.76, plinth_height=0.14,
+        base_depth=0.60, wall_bottom=1.55, wall_height=0.75, wall_depth=0.33, front_gap=0.003,
+        front_thickness=0.022),                                      # a country kitchen of double doors
+    _ht(954, [["drawers", 0.45], ["oven", 0.6], ["drawers", 0.45], ["dishwasher", 0.45], ["sink", 0.6], ["door", 0.45]],
+        [["door", 0.45], ["flap_up", 0.6], ["door", 0.45], ["sliding", 1.0]], [["left", "fridge1"], ["right", "split"]],
+        cam=_CAM_LARGE, handle_styles=["edge"], microwaves=1, carcass_height=0.72, plinth_height=0.10, base_depth=0.58,
+        wall_bottom=1.50, wall_height=0.70, wall_depth=0.33, tall_height=2.05, tall_width=0.60, front_gap=0.002,
+        front_thickness=0.019),                                      # tall units at both ends, 45 cm singles
+    _ht(955, [["door", 0.4], ["door", 0.4], ["drawers", 0.4], ["drawers", 0.4], ["sink", 0.8], ["door", 0.5],
+              ["door", 0.5]],
+        [["door", 0.4], ["door", 0.4], ["door", 0.5], ["door", 0.5], ["flap_down", 0.6]],
+        handle_styles=["bar"], yaw_deg=[15.0, 15.0], carcass_height=0.80, plinth_height=0.10, base_depth=0.60,
+        wall_bottom=1.50, wall_height=0.80, wall_depth=0.35, front_gap=0.003, front_thickness=0.018),
+                                                                     # pairs of singles where a double would do
+    _ht(956, [["drawers", 1.2], ["sink", 1.0], ["drawer_door", 0.6], ["door", 0.6]],
+        [["flap_up", 1.2], ["door", 0.6], ["double_door", 1.0]],
+        cam=_CAM_LARGE, handle_styles=["bar"], carcass_height=0.82, plinth_height=0.08, base_depth=0.62,
+        wall_bottom=1.55, wall_height=0.60, wall_depth=0.37, front_gap=0.004, front_thickness=0.020),
+                                                                     # wide pan drawers and a wide flap
+    _ht(957, [["drawer_door", 0.5], ["sink", 0.6], ["oven", 0.6], ["flap_down", 0.45]],
+        [["sliding", 1.2], ["sliding_single", 0.6]],
+        handle_styles=["edge"], microwaves=1, carcass_height=0.72, plinth_height=0.10, base_depth=0.55,
+        wall_bottom=1.40, wall_height=0.50, wall_depth=0.30, front_gap=0.003, front_thickness=0.018),
+                                                                     # a studio with sliding wall fronts
+    _ht(958, [["drawers", 0.6], ["drawers", 0.6], ["drawers", 0.6], ["dishwasher", 0.6], ["sink", 0.9],
+              ["double_door", 0.9]],
+        [["door", 0.6], ["door", 0.6], ["flap_up", 0.9], ["glass_door", 0.45], ["glass_door", 0.45]],
+        [["right", "fridge2"]], handle_styles=["small_knob"], no_handle_p=0.1, carcass_height=0.86,
+        plinth_height=0.15, base_depth=0.62, wall_bottom=1.60, wall_height=0.90, wall_depth=0.35, tall_height=2.25,
+        tall_width=0.65, front_gap=0.0025, front_thickness=0.021),   # a bank of drawers, tall carcasses
+    _ht(959, [["door", 0.3], ["door", 0.3], ["oven", 0.6], ["drawers", 0.3], ["sink", 0.6], ["door", 0.6]],
+        [["door", 0.3], ["door", 0.3], ["door", 0.6], ["flap_up", 0.6]],
+        cam=_CAM_LARGE, handle_styles=["knob"], yaw_deg=[-8.0, -8.0], carcass_height=0.72, plinth_height=0.10,
+        base_depth=0.58, wall_bottom=1.45, wall_height=0.65, wall_depth=0.32, front_gap=0.003,
+        front_thickness=0.018),                                      # 30 cm units beside an oven
+]
 
 
 def missing_kitchens(split: str, kitchens: list[int]) -> str | None:
     """Why some of ``kitchens`` are not kitchens of ``split`` (the hand split has
     ``len(HAND)``; the procedural ones any index >= 0), or None when all are."""
-    if split == "hand" and kitchens and max(kitchens) >= len(HAND):
-        return f"the hand split has kitchens 0 .. {len(HAND) - 1}"
+    for name, written in (("hand", HAND), ("hand_tune", HAND_TUNE)):
+        if split == name and kitchens and max(kitchens) >= len(written):
+            return f"the {name} split has kitchens 0 .. {len(written) - 1}"
     return None
 
 
@@ -130,6 +197,11 @@ def split_synth(split: str, k: int) -> dict:
         if why:
             raise ValueError(f"{why}, not {k}")
         return copy.deepcopy(HAND[k])
+    if split == "hand_tune":
+        why = missing_kitchens(split, [k])
+        if why:
+            raise ValueError(f"{why}, not {k}")
+        return copy.deepcopy(HAND_TUNE[k])
     g = np.random.default_rng([1000 if split == "train" else 5000, k])
     if split == "train":
         layout = {
