@@ -30,7 +30,8 @@ and handle style were written by hand as a kitchen planner would, in combination
 draws (a galley of 30 cm units; 80 cm drawer banks under lift-up flaps; tall units at both ends;
 85 cm carcasses with recessed pulls and push-to-open fronts; a compact studio; doors only; drawer
 banks with half the fronts push-to-open; a long run with every kind). Only materials, hinge
-sides, objects and the camera's walk come from the seed.
+sides, objects and the camera's walk come from the seed. ``hand_tune`` (:data:`HAND_TUNE`) is ten
+kitchens written the same way to be tuned on, as the train split is for the drawn ones.
 """
 
 import copy

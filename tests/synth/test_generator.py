@@ -321,6 +321,12 @@ def test_splits_are_fixed_and_disjoint():
     for c in hand:
         parts = layout_parts(sample_layout(c))
         assert sum(p.articulated for p in parts.parts) >= 9
+    tune = [split_config("hand_tune", k) for k in range(10)]  # written by hand, to be tuned on
+    assert all(c.layout.modules is not None for c in tune)
+    assert not {c.seed for c in tune} & ({c.seed for c in hand} | train | test)
+    with pytest.raises(ValueError, match="hand_tune split has kitchens 0 .. 9"):
+        split_synth("hand_tune", 10)
+    assert sum(sum(p.articulated for p in layout_parts(sample_layout(c)).parts) for c in tune) == 158
 
 
 def test_wide_generator_makes_each_new_case():
