@@ -53,7 +53,7 @@ def parse_variant(text: str, base: BuiltinDetectConfig) -> BuiltinDetectConfig:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--split", default="train", choices=["train", "test"])
+    ap.add_argument("--split", default="train", choices=["train", "test", "hand_tune"])
     ap.add_argument("--kitchens", type=int, nargs="+", default=list(range(16, 32)))
     ap.add_argument("--every", type=int, default=3, help="every n-th view of each kitchen's camera path")
     ap.add_argument("--weights", type=Path, nargs="+", default=[BenchPaths(ROOT / "bench").detector_weights],

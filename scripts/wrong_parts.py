@@ -7,11 +7,16 @@ more) or ``no_front`` (:func:`drawer_lib.metrics.articulation.wrong_parts`), and
 (true kind -> predicted kind) pairs of the wrongly typed. With ``--decisions``, each wrongly typed
 part is listed with what articulate recorded for its front in ``decisions.json``: its size (m),
 the score margin over the runner-up, the handle's orientation, the hypotheses excluded, the
-reason. Look only at kitchens you tune on.
+reason. With ``--missed``, the other side: each true part recall counts as not found, and why
+(``wrong_kind``, ``merged`` into a front that touches a neighbour too, ``off_front``, or
+``no_part``: no predicted articulated front touches it;
+:func:`drawer_lib.metrics.articulation.missed_parts`), by its true kind. Look only at kitchens
+you tune on.
 
     python scripts/wrong_parts.py OUT/train --tag swa                  # by_detector/builtin-swa/
     python scripts/wrong_parts.py OUT1/train OUT2/train --model capture
     python scripts/wrong_parts.py OUT/train --tag swa --decisions      # and why each wrong type won
+    python scripts/wrong_parts.py OUT/train --tag swa --missed         # and why each true part was not found
 """
 
 import argparse
@@ -21,7 +26,7 @@ from pathlib import Path
 
 from bench_detect import variant  # the folder bench_detect writes a model's parts to
 from drawer_lib.io.parts import read_parts
-from drawer_lib.metrics.articulation import WRONG_WHY, match_parts, wrong_parts
+from drawer_lib.metrics.articulation import MISSED_WHY, WRONG_WHY, match_parts, missed_parts, wrong_parts
 from drawer_lib.paths import ScenePaths, capture_name
 
 
@@ -37,10 +42,11 @@ def decision_fields(segment: dict | None) -> dict:
             "excluded": sorted(segment.get("excluded") or {}), "reason": segment.get("reason")}
 
 
-def split_rows(split_dir: Path, folder: str, decisions: bool = False) -> list[dict]:
+def split_rows(split_dir: Path, folder: str, decisions: bool = False, missed: list | None = None) -> list[dict]:
     """The wrong parts of every built kitchen of ``split_dir`` scored from ``by_detector/<folder>``,
     each with its ``kitchen``; with ``decisions``, the wrongly typed ones with
-    :func:`decision_fields` of their front."""
+    :func:`decision_fields` of their front. ``missed``: a list that the true parts not found
+    (:func:`missed_parts`, each with its ``kitchen``) are appended to."""
     kitchens = sorted(split_dir.glob("kitchen_*"), key=lambda p: int(p.name.split("_")[-1]))
     if not kitchens:
         raise SystemExit(f"error: {split_dir}: no kitchen_* folders (a bench_detect --out DIR writes DIR/<split>/)")
@@ -52,6 +58,8 @@ def split_rows(split_dir: Path, folder: str, decisions: bool = False) -> list[di
             raise SystemExit(f"error: {pred}: missing (was bench_detect run with this --tag and model?)")
         m = match_parts(read_parts(pred), read_parts(sp.capture / capture_name("gt_parts")))
         found = [{"kitchen": k.name, **r} for r in wrong_parts(m)]
+        if missed is not None:
+            missed += [{"kitchen": k.name, **r} for r in missed_parts(m)]
         if decisions and any(r["why"] == "wrong_kind" for r in found):
             path = ScenePaths(k / "by_detector", folder).file("articulate", "decisions")
             if not path.is_file():
@@ -74,14 +82,20 @@ def main() -> None:
     ap.add_argument("--json", type=Path, help="also write every wrong part here")
     ap.add_argument("--decisions", action="store_true",
                     help="list each wrongly typed part with what decisions.json recorded for its front")
+    ap.add_argument("--missed", action="store_true", help="also count why each true part was not found")
     a = ap.parse_args()
     folder = variant(a.model, a.tag)
-    everything = []
+    everything, not_found = [], []
     for d in a.splits:
-        rows = split_rows(d, folder, a.decisions)
+        missed = [] if a.missed else None
+        rows = split_rows(d, folder, a.decisions, missed)
         c = collections.Counter(r["why"] for r in rows)
         print(f"{d} ({folder}): {len(rows)} wrong: " + ", ".join(f"{w} {c[w]}" for w in WRONG_WHY))
         everything += [{"split": str(d), **r} for r in rows]
+        if missed is not None:
+            c = collections.Counter(r["why"] for r in missed)
+            print(f"{d} ({folder}): {len(missed)} true parts not found: " + ", ".join(f"{w} {c[w]}" for w in MISSED_WHY))
+            not_found += [{"split": str(d), **r} for r in missed]
     typed = collections.Counter((r["gt_kind"], r["pred_kind"]) for r in everything if r["why"] == "wrong_kind")
     print(f"all: {len(everything)} wrong, {sum(typed.values())} of them wrongly typed; true -> predicted:")
     for (g, p), n in typed.most_common(a.top):
@@ -96,8 +110,13 @@ def main() -> None:
             w, h = r["size"] or (float("nan"), float("nan"))
             print(f"{where} {w:.2f} x {h:.2f} m, margin {r['margin']:.2f} over {r['runner_up']}, handle {r['handle']}"
                   + (f", excluded {', '.join(r['excluded'])}" if r["excluded"] else "") + f"; {r['reason']}")
+    if a.missed:
+        print(f"all: {len(not_found)} true parts not found; by true kind and why:")
+        by_kind = collections.Counter((r["gt_kind"], r["why"]) for r in not_found)
+        for (g, w), n in sorted(by_kind.items(), key=lambda kv: (-kv[1], kv[0])):
+            print(f"  {n:3d}  {g}: {w}")
     if a.json:
-        a.json.write_text(json.dumps(everything, indent=1))
+        a.json.write_text(json.dumps(everything + [{"missed": True, **r} for r in not_found], indent=1))
 
 
 if __name__ == "__main__":

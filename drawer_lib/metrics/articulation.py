@@ -176,6 +176,40 @@ def wrong_parts(m: Matching) -> list[dict]:
     return out
 
 
+MISSED_WHY = ("wrong_kind", "off_front", "merged", "no_part")
+
+
+def missed_parts(m: Matching) -> list[dict]:
+    """Why each true articulated part of the matching ``m`` that recall counts as not found has
+    no correct prediction, in the order of ``m.gt``: ``why`` is ``wrong_kind`` (matched to a
+    predicted part at IoU >= IOU_MIN, another joint kind), ``merged`` (unmatched; the predicted
+    front overlapping it most, IoU > TOUCH_IOU, also touches another true front: joined with a
+    neighbour), ``off_front`` (unmatched; that front touches it alone: split from it or
+    mis-sized) or ``no_part`` (no predicted articulated front touches it: never detected, or its
+    front was typed fixed or dropped); with ``gt_kind`` (:func:`part_kind`), and for the first
+    three ``pred_kind`` and ``iou`` of that prediction; ``part`` is the true part's id."""
+    matched = {j: (i, o) for i, j, o in m.pairs}
+    found = {j for _, j, _ in m.correct}
+    out = []
+    for j, g in enumerate(m.gt):
+        if j in found:
+            continue
+        row = {"part": g.id, "gt_kind": part_kind(g)}
+        if j in matched:
+            i, o = matched[j]
+            row.update(why="wrong_kind", pred_kind=part_kind(m.pred[i]), iou=float(o))
+        else:
+            ious = np.array([front_overlap(p.front, g.front) for p in m.pred]) if m.pred else np.zeros(0)
+            if not (ious > TOUCH_IOU).any():
+                row.update(why="no_part")
+            else:
+                i = int(ious.argmax())
+                touched = sum(front_overlap(m.pred[i].front, h.front) > TOUCH_IOU for h in m.gt)
+                row.update(why="merged" if touched > 1 else "off_front", pred_kind=part_kind(m.pred[i]),
+                           iou=float(ious[i]))
+        out.append(row)
+    return out
+
 def axis_segment(part: Part) -> np.ndarray:
     """[2, 3] the stretch of a part's axis line that spans its front."""
     o, d = np.asarray(part.axis.origin), np.asarray(part.axis.direction)

@@ -68,3 +68,22 @@ def test_decisions_list_each_wrongly_typed_part_with_its_record(tmp_path):
     (art / "decisions.json").write_text(json.dumps({"segments": [{"segment": 1, "family": "none"}]}))
     r = _run(split, "--tag", "t", "--decisions")
     assert r.returncode == 0 and "kitchen_16 drawer_0: no decision recorded" in r.stdout
+
+
+def test_missed_counts_why_each_true_part_was_not_found(tmp_path):
+    """--missed adds the true parts recall counts as not found, each with why, to the summary
+    and to --json (marked ``missed``)."""
+    split = tmp_path / "train"
+    root = split / "kitchen_16"
+    (root / "capture" / "gt").mkdir(parents=True)
+    write_parts(root / "capture" / "gt" / "parts.json", PartsFile((_door("d0", 0.0), _door("d1", 1.0), _door("d2", 2.0)), ()))
+    (root / "by_detector" / "builtin-t" / "articulate").mkdir(parents=True)
+    write_parts(root / "by_detector" / "builtin-t" / "articulate" / "parts.json",
+                PartsFile((_door("a", 0.0), _door("b", 1.0, "prismatic")), ()))
+    r = _run(split, "--tag", "t", "--missed", "--json", tmp_path / "wrong.json")
+    assert r.returncode == 0, r.stderr
+    assert "2 true parts not found: wrong_kind 1, off_front 0, merged 0, no_part 1" in r.stdout
+    assert "1  revolute: no_part" in r.stdout
+    rows = json.loads((tmp_path / "wrong.json").read_text())
+    assert [(x["part"], x["why"], x.get("missed", False)) for x in rows] == [
+        ("b", "wrong_kind", False), ("d1", "wrong_kind", True), ("d2", "no_part", True)]

@@ -7,7 +7,7 @@ import pytest
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.io.parts import Axis, Front, IgnoreBox, Part, PartsFile
 from drawer_lib.metrics.articulation import (articulation_metrics, clip_convex, convex_iou, ea_pair, front_overlap,
-                                             match_parts, project_segment, wrong_parts)
+                                             match_parts, missed_parts, project_segment, wrong_parts)
 
 N = (0.0, -1.0, 0.0)
 U = (1.0, 0.0, 0.0)
@@ -85,6 +85,27 @@ def test_wrong_parts_say_why_each_counted_prediction_is_wrong():
     (r,) = wrong_parts(match_parts(swapped, gt))
     assert r["why"] == "wrong_kind" and r["gt_kind"] == "revolute" and r["pred_kind"] == "prismatic" and r["iou"] == pytest.approx(1.0)
     assert [r["why"] for r in wrong_parts(match_parts(pred, PartsFile((), ())))] == ["no_front"] * 6  # no ground truth at all
+
+
+def test_missed_parts_say_why_each_true_part_was_not_found():
+    """One true part of each kind of miss beside a found one: the reasons, the prediction each
+    names, and a row for exactly the parts recall counts as not found."""
+    fs = [front(cx=0.0), front(cx=0.6), front(cx=-0.6, w=0.3), front(cx=-1.0, w=0.3), front(cx=1.4, w=0.4),
+          front(cx=2.2, w=0.6)]
+    gt = PartsFile(tuple(door(f"g{k}", f) for k, f in enumerate(fs)), ())
+    pred = PartsFile((door("right", front(cx=0.01)),                    # g0: found
+                      door("as_drawer", front(cx=0.6), "prismatic"),    # g1: wrongly typed
+                      door("merged", front(cx=-0.8, w=0.7)),            # over g2 and g3
+                      door("half", front(cx=1.5, w=0.2))))              # half of g4; g5: nothing
+    m = match_parts(pred, gt)
+    rows = missed_parts(m)
+    assert [(r["part"], r["why"]) for r in rows] == [("g1", "wrong_kind"), ("g2", "merged"), ("g3", "merged"),
+                                                      ("g4", "off_front"), ("g5", "no_part")]
+    assert rows[0]["pred_kind"] == "prismatic" and rows[0]["iou"] == pytest.approx(1.0)
+    assert rows[3]["iou"] == pytest.approx(front_overlap(front(cx=1.5, w=0.2), fs[4])) and "pred_kind" not in rows[4]
+    res, _ = articulation_metrics(pred, gt, [])
+    assert len(rows) == res["n_gt"] - res["n_correct"]  # what recall counts as not found
+    assert [r["why"] for r in missed_parts(match_parts(PartsFile((), ()), gt))] == ["no_part"] * 6  # nothing predicted
 
 
 def test_ea_score_extremes():
