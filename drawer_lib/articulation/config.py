@@ -184,7 +184,10 @@ class SplitConfig:
     profiled in bins of ``depth_bin`` m (:func:`~drawer_lib.articulation.gaps.depth_step_cuts`;
     the mesh alone, no images needed). ``extent_steps``: also where the segment's outline steps
     by ``extent_min_step`` m or more (an L-shaped segment is two fronts;
-    :func:`~drawer_lib.articulation.gaps.extent_step_cuts`)."""
+    :func:`~drawer_lib.articulation.gaps.extent_step_cuts`). ``max_width`` (m; 0: off): a piece
+    wider than this holds several fronts (catalogue doors stop near 0.6 m, drawers and flaps
+    near 1.2 m): its vertical cuts need no handle on either side, and with no such cut it is cut
+    at its best-covered column all the same, at least ``wide_min_piece`` (m) from its ends."""
 
     enabled: bool = True
     boundary_rate: float = 0.1
@@ -202,12 +205,17 @@ class SplitConfig:
     depth_bin: float = 0.02
     extent_steps: bool = True
     extent_min_step: float = 0.05
+    max_width: float = 0.0
+    wide_min_piece: float = 0.2
 
     def __post_init__(self):
         if not 0 < self.duplicate_iou <= 1:
             raise ConfigError(f"articulate.split.duplicate_iou = {self.duplicate_iou} must be in (0, 1]")
         if not self.extent_min_step > 0:
             raise ConfigError(f"articulate.split.extent_min_step = {self.extent_min_step} must be > 0 m")
+        if self.max_width < 0 or not self.wide_min_piece > 0 or (self.max_width and self.max_width < 2 * self.wide_min_piece):
+            raise ConfigError(f"articulate.split: need max_width >= 0 (0: off) and wide_min_piece > 0, at most half of it; "
+                              f"got {self.max_width}, {self.wide_min_piece}")
         if not 0 < self.depth_bin <= 0.1:
             raise ConfigError(f"articulate.split.depth_bin = {self.depth_bin} must be in (0, 0.1] m")
         if self.step < 1 or self.max_depth < 0 or self.slack < 0:

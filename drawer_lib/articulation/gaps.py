@@ -23,7 +23,9 @@ cells cover ``coverage_handles``),
 at least ``min_piece`` from the piece's edges and crossing no handle cell; the best-covered one wins, and both sides are cut again (up
 to ``max_depth``). A tile joint or a wood grain has no mask along it and no handle either side,
 nor has the end of a false detection that happens to cross a thin drawer in a few views;
-a shaker frame lies within ``min_piece`` of an edge; a handle does not span a front.
+a shaker frame lies within ``min_piece`` of an edge; a handle does not span a front. A front
+wider than ``max_width`` is several (no kitchen front is that wide): there a vertical line needs
+no handles either side, and one is cut at its best line all the same.
 Shapes: grids are [Gv, Gu], v bottom -> top, u left -> right.
 """
 
@@ -84,22 +86,28 @@ def _span_coverage(lines: np.ndarray, parts: int = 3) -> np.ndarray:
 
 
 def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarray, lo: int, hi: int, a0: int,
-              a1: int, min_cells: int, coverage: float, coverage_handles: float) -> tuple[int, float]:
+              a1: int, min_cells: int, coverage: float, coverage_handles: float,
+              several: bool = False) -> tuple[int, float]:
     """The best cut along axis 1 of the line maps [A, B] ``lines`` = (strong mask boundaries,
     weak ones, image lines) between columns lo + ``min_cells`` and hi - ``min_cells``, over rows
     a0..a1: (column, coverage) or (-1, 0). A column qualifies when its strong boundary cells
     cover ``coverage`` of each third of the rows (:func:`_span_coverage`), or, with handle cells
     on both sides of it, its weak boundary or image line cells cover ``coverage_handles`` (a
     tile joint, a grain line or the end of a false detection has no handle on either side); no
-    column through a handle."""
+    column through a handle. ``several``: the piece is known to hold several fronts (too wide
+    to be one), so the weak kinds need no handles either side; with ``coverage_handles`` 0 any
+    column with a line cell in each third qualifies (the best-covered wins)."""
     if hi - lo < 2 * min_cells or a1 <= a0:
         return -1, 0.0
     strong, weak, img = (_span_coverage(x[a0:a1, lo:hi]) for x in lines)
     h = handle[a0:a1, lo:hi].any(0)
     left = np.concatenate([[False], np.cumsum(h)[:-1] > 0])  # a handle column before this one
     right = np.concatenate([(np.cumsum(h[::-1])[::-1] > 0)[1:], [False]])  # ... after it
+    if several:
+        left[:], right[:] = True, True
     aided = np.maximum(weak, img)
-    ok = (strong >= coverage) | ((aided >= coverage_handles) & left & right)
+    weak_ok = aided > 0 if coverage_handles <= 0 else aided >= coverage_handles
+    ok = (strong >= coverage) | (weak_ok & left & right)
     ok &= ~h
     ok[:min_cells] = False
     ok[len(ok) - min_cells:] = False
@@ -114,25 +122,35 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
 
 
 def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], handle: np.ndarray,
-            piece: Piece, coverage: float, coverage_handles: float, min_cells: int, max_depth: int) -> list[Piece]:
+            piece: Piece, coverage: float, coverage_handles: float, min_cells: int, max_depth: int,
+            wide_cells: int = 0, wide_min_cells: int = 1) -> list[Piece]:
     """The leaves of the recursive cut of ``piece`` (cells) at full-span gap lines (module
     docstring). ``lines_u`` = (strong mask boundaries, weak ones, image lines) across u
     (vertical lines), ``lines_v`` the same across v (horizontal lines), each bool [Gv, Gu];
     ``handle`` [Gv, Gu]: handle cells (no cut crosses one; with one on each side a cut needs only
-    ``coverage_handles`` of the weak kinds)."""
+    ``coverage_handles`` of the weak kinds). ``wide_cells`` (> 0): a piece wider than this
+    holds several fronts: its vertical cuts need no handles either side, and without such a
+    cut it is cut at its best-covered column with any line cell in each third of its height, at
+    least ``wide_min_cells`` from its ends (until no piece is wider, or no column has one)."""
     u0, u1, v0, v1 = piece
     if max_depth <= 0:
         return [piece]
-    ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, min_cells, coverage, coverage_handles)
+    wide = 0 < wide_cells < u1 - u0
+    ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, min_cells, coverage, coverage_handles, several=wide)
     iv, cv = _best_cut(tuple(x.T for x in lines_v), handle.T, v0, v1, u0, u1, min_cells, coverage, coverage_handles)
+    if wide and ju < 0:  # too wide to be one front, and no line good enough: the best line there is
+        ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)
+        if ju >= 0:
+            iv = -1
     if ju < 0 and iv < 0:
         return [piece]
-    if cu >= cv:
+    if ju >= 0 and (cu >= cv or iv < 0):
         halves = [(u0, ju, v0, v1), (ju + 1, u1, v0, v1)]
     else:
         halves = [(u0, u1, v0, iv), (u0, u1, iv + 1, v1)]
     return [leaf for h in halves
-            for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells, max_depth - 1)]
+            for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells, max_depth - 1,
+                                wide_cells, wide_min_cells)]
 
 
 def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_rate: float, handle_min_views: int
@@ -161,8 +179,10 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
         maps_u.append(np.zeros_like(iu) if bd is None else _widen(bd[0][np.ix_(rows, cols)], cfg.slack, 1))
         maps_v.append(np.zeros_like(iv) if bd is None else _widen(bd[1][np.ix_(rows, cols)], cfg.slack, 0))
     min_cells = max(1, int(np.ceil(cfg.min_piece / rf.res)))
+    wide_cells = int(np.floor(cfg.max_width / rf.res)) if cfg.max_width else 0
     pieces = xy_cuts((*maps_u, iu), (*maps_v, iv), hmap, (0, len(cols), 0, len(rows)), cfg.coverage,
-                     cfg.coverage_handles, min_cells, cfg.max_depth)
+                     cfg.coverage_handles, min_cells, cfg.max_depth, wide_cells,
+                     max(1, int(np.ceil(cfg.wide_min_piece / rf.res))))
     if len(pieces) == 1:
         return [front]
     c, u, v, res = np.asarray(front.center), np.asarray(front.u), front.v, rf.res

@@ -97,7 +97,58 @@ def test_nothing_seen_is_no_split():
     assert split_front(FRONT, rf, SplitConfig(), 0.3, 3) == [FRONT]
 
 
-@pytest.mark.parametrize("bad", [{"coverage": 0.0}, {"boundary_rate": 1.5}, {"min_piece": 0.0}, {"step": 0}])
+WIDE = Front((1.0, -0.6, 1.8), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2.0, 0.7))  # a run of wall doors as one
+
+
+def _wide_rf(lines_u=(), handles=(), views: int = 20) -> RectifiedFront:
+    """A rectified WIDE front: faint image lines at u (m from the left edge, full height, half
+    the contrast of _rf's), handle boxes (u0, u1, v0, v1), no mask boundary anywhere."""
+    w, h = WIDE.size
+    gu, gv = int(round(w / RES)), int(round(h / RES))
+    uu = (np.arange(gu) + 0.5) * RES
+    gray = np.full((gv, gu), 0.5) + 0.004 * np.sin(40 * uu)[None, :]
+    for u in lines_u:
+        gray[:, int(u / RES)] -= 0.05
+    handle = np.zeros((gv, gu), np.int32)
+    for u0, u1, v0, v1 in handles:
+        handle[int(v0 / RES):int(v1 / RES), int(u0 / RES):int(u1 / RES)] = views
+    full = np.full((gv, gu), views, np.int32)
+    zero = np.zeros((gv, gu), np.int32)
+    return RectifiedFront(-w / 2, -h / 2, RES, full, handle, full.copy(), np.repeat(gray[..., None], 3, axis=2),
+                          zero, zero.copy(), full.copy(), full.copy())
+
+
+def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
+    """Four 0.5 m doors joined in every view, no handle found: off (max_width 0), one front; at
+    1.3 m, cut at the image lines until no piece is wider (the 1.0 m pair left at the end stays
+    one, as a front of 1.0 m may be); with max_width 0.9, all four. A wide front without any line, or with
+    lines only near its ends, stays whole."""
+    rf = _wide_rf(lines_u=[0.5, 1.0, 1.5])
+    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == [WIDE]
+    sizes = _sizes(split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3))
+    assert sum(w for w, _ in sizes) == pytest.approx(2.0, abs=0.02) and max(w for w, _ in sizes) <= 1.3
+    assert sizes == [(0.5, 0.7), (0.5, 0.7), (1.0, 0.7)]  # 0.5 | 1.5, and the 1.5 m piece once more
+    assert _sizes(split_front(WIDE, rf, SplitConfig(max_width=0.9), 0.3, 3)) == [(0.5, 0.7)] * 4
+    assert split_front(WIDE, _wide_rf(), SplitConfig(max_width=1.3), 0.3, 3) == [WIDE]
+    assert split_front(WIDE, _wide_rf(lines_u=[0.06, 1.94]), SplitConfig(max_width=1.3), 0.3, 3) == [WIDE]
+    # a line too faint for a cut (in one row of four: under coverage_handles) is still the best one there
+    rf = _wide_rf(lines_u=[0.8])
+    col = int(0.8 / RES)
+    faint = np.arange(rf.rgb.shape[0]) % 4 != 0
+    rf.rgb[faint, col] = rf.rgb[faint, col + 3]
+    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == [WIDE]  # off: it cuts nothing
+    assert _sizes(split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3)) == [(0.8, 0.7), (1.2, 0.7)]
+    # a handle on the line is never cut through
+    knob = [(0.48, 0.52, 0.3, 0.4)]
+    assert split_front(WIDE, _wide_rf(lines_u=[0.5], handles=knob), SplitConfig(max_width=1.3), 0.3, 3) == [WIDE]
+    # a front up to max_width keeps the old rule: an image line cuts only between two handles
+    narrow = Front(WIDE.center, WIDE.normal, WIDE.u, (1.2, 0.7))  # the middle 1.2 m of the rectified front
+    assert split_front(narrow, _wide_rf(lines_u=[1.0]), SplitConfig(max_width=1.3), 0.3, 3) == [narrow]
+    assert len(split_front(narrow, _wide_rf(lines_u=[1.0]), SplitConfig(max_width=1.1), 0.3, 3)) == 2
+
+
+@pytest.mark.parametrize("bad", [{"coverage": 0.0}, {"boundary_rate": 1.5}, {"min_piece": 0.0}, {"step": 0},
+                                 {"max_width": -1.0}, {"wide_min_piece": 0.0}, {"max_width": 0.3, "wide_min_piece": 0.2}])
 def test_config_checked(bad):
     with pytest.raises(ConfigError, match="articulate.split"):
         SplitConfig(**bad)
