@@ -82,13 +82,15 @@ def variant(model: str, tag: str) -> str:
     return f"{model}-{tag}" if tag else model
 
 
-def reused_run(root: Path, model: str, from_tag: str) -> ScenePaths:
-    """The outputs of ``model``'s run tagged ``from_tag`` under kitchen folder ``root``, whose
-    detections and decomposition a ``--from-tag`` variant reads; stops when it has none."""
+def reused_run(root: Path, model: str, from_tag: str) -> tuple[ScenePaths, ScenePaths]:
+    """(detections, decomposition): the outputs of ``model``'s run tagged ``from_tag`` under
+    kitchen folder ``root`` that a ``--from-tag`` variant reads; the detections are that run's
+    own, or the model's untagged ones when it decoded none (a tag that varied decompose or
+    articulate only); stops when the run has no decomposition."""
     src = ScenePaths(root / "by_detector", variant(model, from_tag))
     if not src.metrics("decompose").is_file():
         raise SystemExit(f"error: {src.metrics('decompose')}: missing; run this split with --tag {from_tag} first")
-    return src
+    return (src if src.metrics("detect").is_file() else ScenePaths(root / "by_detector", model)), src
 
 
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path],
@@ -135,7 +137,7 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
         d = v if own_detect else ScenePaths(sp.root / "by_detector", model)  # the detections
         src = v  # the decomposition articulate reads
         if reuse:
-            d = src = reused_run(sp.root, model, from_tag)
+            d, src = reused_run(sp.root, model, from_tag)
         t0 = time.perf_counter()
         if not reuse and decisions is None and not (tag and not own_detect and d.metrics("detect").is_file()):
             dc = dataclasses.replace(to_typed(DetectConfig, cfg.detect, "detect"), model=model)

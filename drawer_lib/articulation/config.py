@@ -205,7 +205,7 @@ class SplitConfig:
     depth_bin: float = 0.02
     extent_steps: bool = True
     extent_min_step: float = 0.05
-    max_width: float = 0.0
+    max_width: float = 1.3
     wide_min_piece: float = 0.2
 
     def __post_init__(self):

@@ -120,11 +120,12 @@ def _wide_rf(lines_u=(), handles=(), views: int = 20) -> RectifiedFront:
 
 def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
     """Four 0.5 m doors joined in every view, no handle found: off (max_width 0), one front; at
-    1.3 m, cut at the image lines until no piece is wider (the 1.0 m pair left at the end stays
+    1.3 m (the default), cut at the image lines until no piece is wider (the 1.0 m pair left at the end stays
     one, as a front of 1.0 m may be); with max_width 0.9, all four. A wide front without any line, or with
     lines only near its ends, stays whole."""
     rf = _wide_rf(lines_u=[0.5, 1.0, 1.5])
-    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == [WIDE]
+    assert split_front(WIDE, rf, SplitConfig(max_width=0.0), 0.3, 3) == [WIDE]
+    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3)
     sizes = _sizes(split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3))
     assert sum(w for w, _ in sizes) == pytest.approx(2.0, abs=0.02) and max(w for w, _ in sizes) <= 1.3
     assert sizes == [(0.5, 0.7), (0.5, 0.7), (1.0, 0.7)]  # 0.5 | 1.5, and the 1.5 m piece once more
@@ -136,7 +137,7 @@ def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
     col = int(0.8 / RES)
     faint = np.arange(rf.rgb.shape[0]) % 4 != 0
     rf.rgb[faint, col] = rf.rgb[faint, col + 3]
-    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == [WIDE]  # off: it cuts nothing
+    assert split_front(WIDE, rf, SplitConfig(max_width=0.0), 0.3, 3) == [WIDE]  # off: it cuts nothing
     assert _sizes(split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3)) == [(0.8, 0.7), (1.2, 0.7)]
     # a handle on the line is never cut through
     knob = [(0.48, 0.52, 0.3, 0.4)]

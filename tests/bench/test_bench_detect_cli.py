@@ -94,3 +94,24 @@ def test_from_tag_reruns_articulate_alone_on_the_tagged_runs_outputs(tmp_path, m
     assert calls[1] == ("articulate", src / "decompose", dst / ".articulate.tmp")  # written atomically
     assert calls[2] == ("score", dst / "articulate" / "parts.json")
     assert row["builtin"]["n_correct"] == 1 and row["builtin"]["source"] == "detections"
+
+
+def test_a_rerun_from_a_tag_reads_that_runs_detections_or_the_untagged_ones(tmp_path):
+    """--from-tag TAG: articulate reads TAG's decomposition, and TAG's own detections when it
+    decoded some (a detect.* variant), else the model's untagged detections (TAG varied
+    decompose or articulate only)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_detect", SCRIPT)
+    bd = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bd)
+    for folder, stage in (("builtin-cur", "decompose"), ("builtin", "detect"), ("builtin-me5", "decompose"),
+                          ("builtin-me5", "detect")):
+        (tmp_path / "by_detector" / folder / stage).mkdir(parents=True)
+        (tmp_path / "by_detector" / folder / stage / "metrics.json").write_text("{}")
+    d, src = bd.reused_run(tmp_path, "builtin", "cur")
+    assert d.root.name == "builtin" and src.root.name == "builtin-cur"
+    d, src = bd.reused_run(tmp_path, "builtin", "me5")
+    assert d.root.name == "builtin-me5" and src.root.name == "builtin-me5"
+    with pytest.raises(SystemExit, match="builtin-none/decompose/metrics.json: missing"):
+        bd.reused_run(tmp_path, "builtin", "none")
