@@ -69,7 +69,7 @@ from drawer_lib.runner import stage_run
 from drawer_lib.sdf.config import SdfConfig
 from drawer_lib.sdf.io import load_field
 from drawer_lib.sdf.pipeline import run_sdf
-from drawer_lib.synth.splits import HAND, HAND_TUNE, SPLITS, missing_kitchens
+from drawer_lib.synth.splits import SPLITS, WRITTEN, missing_kitchens
 
 ROOT = Path(__file__).resolve().parent.parent
 FITTED_DIR = "articulate_fitted"
@@ -248,7 +248,7 @@ def main() -> None:
     a = ap.parse_args()
     layout = parse_layout(a.layout)
     if a.kitchens is None:
-        a.kitchens = list(range({"hand": len(HAND), "hand_tune": len(HAND_TUNE)}.get(a.split, 20)))
+        a.kitchens = list(range(len(WRITTEN[a.split]) if a.split in WRITTEN else 20))
     why = missing_kitchens(a.split, a.kitchens)
     if why:
         raise SystemExit(f"error: --kitchens {' '.join(map(str, a.kitchens))}: {why}")

@@ -141,10 +141,10 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
     if wide and ju < 0:  # too wide to be one front, and no line good enough: the best line there is
         ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)
         if ju >= 0:
-            iv = -1
+            iv, cv = -1, 0.0
     if ju < 0 and iv < 0:
         return [piece]
-    if ju >= 0 and (cu >= cv or iv < 0):
+    if cu >= cv:
         halves = [(u0, ju, v0, v1), (ju + 1, u1, v0, v1)]
     else:
         halves = [(u0, u1, v0, iv), (u0, u1, iv + 1, v1)]

@@ -99,14 +99,15 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
             if cfg.split.extent_steps:
                 pieces = [q for p in pieces for q in extent_step_cuts(p, pts, centres, owner, s.id, cfg.split.extent_min_step,
                                                                         cfg.split.min_piece, cfg.split.depth_bin, log=cuts)]
+        wide = cfg.split.enabled and 0 < cfg.split.max_width < front.size[0]  # cut by articulate.split.max_width
+        too_wide = {"too_wide": round(float(front.size[0]), 4)} if wide else {}
         for k, piece in enumerate(pieces):
             w, h = piece.size
             if min(w, h) < fc.min_size or max(w, h) > fc.max_size:
                 report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
                 continue
-            wide = cfg.split.enabled and 0 < cfg.split.max_width < front.size[0]
             info = ({"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
-                    | ({"mesh_cuts": cuts} if cuts else {}) | ({"too_wide": round(float(front.size[0]), 4)} if wide else {}))
+                    | ({"mesh_cuts": cuts} if cuts else {}) | too_wide)
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     plane_tol = 0.75 * cfg.joints.sliding_step[0]  # coplanar: closer than the nearest sliding track

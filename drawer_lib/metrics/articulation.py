@@ -165,7 +165,7 @@ def wrong_parts(m: Matching) -> list[dict]:
             j, o = matched[i]
             row.update(why="wrong_kind", gt_kind=part_kind(m.gt[j]), iou=float(o))
         else:
-            ious = np.array([front_overlap(p.front, g.front) for g in m.gt]) if m.gt else np.zeros(0)
+            ious = _overlaps(p.front, m.gt)
             touched = int((ious > TOUCH_IOU).sum())
             if touched == 0:
                 row.update(why="no_front")
@@ -204,11 +204,16 @@ def missed_parts(m: Matching) -> list[dict]:
                 row.update(why="no_part")
             else:
                 i = int(ious.argmax())
-                touched = sum(front_overlap(m.pred[i].front, h.front) > TOUCH_IOU for h in m.gt)
+                touched = int((_overlaps(m.pred[i].front, m.gt) > TOUCH_IOU).sum())
                 row.update(why="merged" if touched > 1 else "off_front", pred_kind=part_kind(m.pred[i]),
                            iou=float(ious[i]))
         out.append(row)
     return out
+
+
+def _overlaps(front: Front, gt: list[Part]) -> np.ndarray:
+    """[len(gt)] :func:`front_overlap` of a predicted ``front`` with each true part's front."""
+    return np.array([front_overlap(front, g.front) for g in gt]) if gt else np.zeros(0)
 
 def axis_segment(part: Part) -> np.ndarray:
     """[2, 3] the stretch of a part's axis line that spans its front."""

@@ -107,21 +107,24 @@ HAND = [
      "camera": {"n_frames": 60, "width": 320, "height": 240}},
 ]
 
+_CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
+_CAM_LARGE = {"n_frames": 60, "width": 320, "height": 240}
 
-# the hand_tune split: kitchens written by hand as the hand split's are, but to be tuned on (a
-# planner's catalogue widths and runs: 60 cm grids, pairs of singles where a double would do,
-# wide pan drawers, glass and sliding wall fronts); written without reading the hand split's
-# module lists
+
 def _ht(seed, base, wall, tall=None, cam=None, **layout):
+    """A kitchen of the hand_tune split: runs of ``[type, width m]`` (and tall units), the camera
+    (small by default), other layout keys over a level kitchen without microwaves or handle-less
+    fronts."""
     modules = {"base": base, "wall": wall} | ({"tall": tall} if tall else {})
     return {"seed": seed, "layout": {"modules": modules, "yaw_deg": [0.0, 0.0], "no_handle_p": 0.0, "microwaves": 0,
                                      **layout},
             "camera": dict(cam or _CAM_SMALL)}
 
 
-_CAM_SMALL = {"n_frames": 48, "width": 200, "height": 150}
-_CAM_LARGE = {"n_frames": 60, "width": 320, "height": 240}
-
+# the hand_tune split: kitchens written by hand as the hand split's are, but to be tuned on (a
+# planner's catalogue widths and runs: 60 cm grids, pairs of singles where a double would do,
+# wide pan drawers, glass and sliding wall fronts); written without reading the hand split's
+# module lists
 HAND_TUNE = [
     _ht(950, [["drawers", 0.6], ["door", 0.6], ["sink", 0.8], ["dishwasher", 0.6], ["oven", 0.6], ["drawers", 0.8]],
         [["door", 0.6], ["door", 0.6], ["flap_up", 0.8], ["double_door", 0.8], ["door", 0.4]], [["right", "fridge2"]],
@@ -177,12 +180,15 @@ HAND_TUNE = [
 ]
 
 
+WRITTEN = {"hand": HAND, "hand_tune": HAND_TUNE}  # the splits written by hand, kitchen by kitchen
+
+
 def missing_kitchens(split: str, kitchens: list[int]) -> str | None:
-    """Why some of ``kitchens`` are not kitchens of ``split`` (the hand split has
-    ``len(HAND)``; the procedural ones any index >= 0), or None when all are."""
-    for name, written in (("hand", HAND), ("hand_tune", HAND_TUNE)):
-        if split == name and kitchens and max(kitchens) >= len(written):
-            return f"the {name} split has kitchens 0 .. {len(written) - 1}"
+    """Why some of ``kitchens`` are not kitchens of ``split`` (a split written by hand has as
+    many as :data:`WRITTEN` lists; the procedural ones any index >= 0), or None when all are."""
+    written = WRITTEN.get(split)
+    if written is not None and kitchens and max(kitchens) >= len(written):
+        return f"the {split} split has kitchens 0 .. {len(written) - 1}"
     return None
 
 
@@ -193,16 +199,11 @@ def split_synth(split: str, k: int) -> dict:
         raise ValueError(f"unknown split {split!r} (known: {SPLITS})")
     if k < 0:
         raise ValueError(f"kitchen index {k} must be >= 0")
-    if split == "hand":
+    if split in WRITTEN:
         why = missing_kitchens(split, [k])
         if why:
             raise ValueError(f"{why}, not {k}")
-        return copy.deepcopy(HAND[k])
-    if split == "hand_tune":
-        why = missing_kitchens(split, [k])
-        if why:
-            raise ValueError(f"{why}, not {k}")
-        return copy.deepcopy(HAND_TUNE[k])
+        return copy.deepcopy(WRITTEN[split][k])
     g = np.random.default_rng([1000 if split == "train" else 5000, k])
     if split == "train":
         layout = {

@@ -17,11 +17,11 @@ FRONT = Front((1.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.8, 0.6))  
 
 
 def _rf(boundaries_u=(), boundaries_v=(), lines_u=(), lines_v=(), handles=(), tiles: float | None = None,
-        views: int = 20, rate: float = 0.25) -> RectifiedFront:
-    """A rectified FRONT without margin: boundaries (in ``rate`` of the views) and image lines at
-    u (m from the left edge, full height) or v (m from the bottom; (v, u_from, u_to)), handle
-    boxes (u0, u1, v0, v1), an optional tile grid of that pitch."""
-    w, h = FRONT.size
+        views: int = 20, rate: float = 0.25, front: Front = FRONT, line: float = 0.1) -> RectifiedFront:
+    """A rectified ``front`` without margin: boundaries (in ``rate`` of the views) and image lines
+    ``line`` darker at u (m from the left edge, full height) or v (m from the bottom; (v, u_from,
+    u_to)), handle boxes (u0, u1, v0, v1), an optional tile grid of that pitch."""
+    w, h = front.size
     gu, gv = int(round(w / RES)), int(round(h / RES))
     uu = (np.arange(gu) + 0.5) * RES
     vv = (np.arange(gv) + 0.5) * RES
@@ -33,9 +33,9 @@ def _rf(boundaries_u=(), boundaries_v=(), lines_u=(), lines_v=(), handles=(), ti
     for v, a, b in boundaries_v:
         ev[int(v / RES), int(a / RES):int(b / RES)] = n_edge
     for u in lines_u:
-        gray[:, int(u / RES)] -= 0.1
+        gray[:, int(u / RES)] -= line
     for v, a, b in lines_v:
-        gray[int(v / RES), int(a / RES):int(b / RES)] -= 0.1
+        gray[int(v / RES), int(a / RES):int(b / RES)] -= line
     if tiles:
         gray[:, (uu % tiles) < RES] -= 0.1
         gray[(vv % tiles) < RES, :] -= 0.1
@@ -100,22 +100,10 @@ def test_nothing_seen_is_no_split():
 WIDE = Front((1.0, -0.6, 1.8), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (2.0, 0.7))  # a run of wall doors as one
 
 
-def _wide_rf(lines_u=(), handles=(), views: int = 20) -> RectifiedFront:
-    """A rectified WIDE front: faint image lines at u (m from the left edge, full height, half
-    the contrast of _rf's), handle boxes (u0, u1, v0, v1), no mask boundary anywhere."""
-    w, h = WIDE.size
-    gu, gv = int(round(w / RES)), int(round(h / RES))
-    uu = (np.arange(gu) + 0.5) * RES
-    gray = np.full((gv, gu), 0.5) + 0.004 * np.sin(40 * uu)[None, :]
-    for u in lines_u:
-        gray[:, int(u / RES)] -= 0.05
-    handle = np.zeros((gv, gu), np.int32)
-    for u0, u1, v0, v1 in handles:
-        handle[int(v0 / RES):int(v1 / RES), int(u0 / RES):int(u1 / RES)] = views
-    full = np.full((gv, gu), views, np.int32)
-    zero = np.zeros((gv, gu), np.int32)
-    return RectifiedFront(-w / 2, -h / 2, RES, full, handle, full.copy(), np.repeat(gray[..., None], 3, axis=2),
-                          zero, zero.copy(), full.copy(), full.copy())
+def _wide_rf(lines_u=(), handles=()) -> RectifiedFront:
+    """A rectified WIDE front: faint image lines (half the contrast of _rf's) at u, handle boxes,
+    no mask boundary anywhere."""
+    return _rf(lines_u=lines_u, handles=handles, front=WIDE, line=0.05)
 
 
 def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
