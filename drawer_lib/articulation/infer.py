@@ -260,7 +260,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
             dec = decide_by_handle(h, s.labels, cfg.types)
-        reason = dec.reason + "".join("; " + why.format(fits[hi][0].id) for lo, hi, why in gave_up if lo == k)
+        reason = dec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
         low = dec.margin is not None and dec.margin < cfg.types.low_margin
         row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason, "low_margin": low,
                "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size],
@@ -288,6 +288,14 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                                pair, side))
         row["part"] = pid
     return parts, report
+
+
+def gave_reasons(gave_up: list[tuple[int, int, str]], k: int, seg_ids: list[int]) -> str:
+    """The text front ``k``'s reason gets for the pulls it gave up (``gave_up``: (front that
+    gave, front that took, why with a ``{}`` for the taker's segment id), fronts indexed as
+    ``seg_ids``): "; why" per distinct why, in order (a pull given up in two moves is said once)."""
+    whys = dict.fromkeys(why.format(seg_ids[hi]) for lo, hi, why in gave_up if lo == k)
+    return "".join("; " + why for why in whys)
 
 
 def world_fixed(border: dict, handle: Handle | None, cfg: FalseFrontsConfig,

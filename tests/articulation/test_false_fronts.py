@@ -7,7 +7,7 @@ import pytest
 
 from drawer_lib.articulation.config import FalseFrontsConfig, SplitConfig
 from drawer_lib.articulation.gaps import border_lines
-from drawer_lib.articulation.infer import flanked, world_fixed
+from drawer_lib.articulation.infer import flanked, gave_reasons, world_fixed
 from drawer_lib.articulation.probes import flush_sides
 from drawer_lib.articulation.rectify import RectifiedFront, front_grid
 from drawer_lib.articulation.vocab import Handle
@@ -108,3 +108,14 @@ def test_false_fronts_config_is_checked():
         FalseFrontsConfig(flanked_line=1.5)
     with pytest.raises(ConfigError, match="flanked_min_lines = 5"):
         FalseFrontsConfig(flanked_min_lines=5)
+
+
+def test_gave_reasons_says_each_pull_once():
+    """A pull handed over in two moves (both of a front's shares, one after the other) gives the
+    same sentence twice: the reason says it once; other fronts' moves are not its own."""
+    why = "the pull it shared with segment {} reaches 1.8 cm deeper into that front, which took it"
+    gave = [(0, 1, why), (0, 1, why), (0, 2, "the pull it shared with segment {} went there"), (1, 0, why)]
+    assert gave_reasons(gave, 0, [7, 16, 20]) == ("; the pull it shared with segment 16 reaches 1.8 cm deeper into "
+                                                   "that front, which took it; the pull it shared with segment 20 went there")
+    assert gave_reasons(gave, 1, [7, 16, 20]).count("segment 7") == 1
+    assert gave_reasons(gave, 2, [7, 16, 20]) == ""
