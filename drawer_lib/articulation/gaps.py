@@ -25,7 +25,8 @@ to ``max_depth``). A tile joint or a wood grain has no mask along it and no hand
 nor has the end of a false detection that happens to cross a thin drawer in a few views;
 a shaker frame lies within ``min_piece`` of an edge; a handle does not span a front. A front
 wider than ``max_width`` is several (no kitchen front is that wide): there a vertical line needs
-no handles either side, and one is cut at its best line all the same.
+no handles either side, and one is cut at its best line all the same; one with no line at all is
+cut into pieces of equal width near ``wide_even`` (a run of modules of one width).
 Shapes: grids are [Gv, Gu], v bottom -> top, u left -> right.
 """
 
@@ -121,9 +122,17 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
     return lo + (j + k) // 2, float(score[j])
 
 
+def even_cuts(u0: int, u1: int, n: int) -> list[tuple[int, int]]:
+    """[u0, u1) cut into ``n`` >= 1 column ranges of equal width (give or take a cell), the
+    column of each cut dropped as a gap is: [(a, b)], b exclusive, left to right."""
+    at = [u0 + int(round(k * (u1 - u0) / n)) for k in range(n + 1)]
+    return [(at[k] + (k > 0), at[k + 1]) for k in range(n)]
+
+
 def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], handle: np.ndarray,
             piece: Piece, coverage: float, coverage_handles: float, min_cells: int, max_depth: int,
-            wide_cells: int = 0, wide_min_cells: int = 1) -> list[Piece]:
+            wide_cells: int = 0, wide_min_cells: int = 1, even_cells: float = 0.0,
+            log: list[dict] | None = None) -> list[Piece]:
     """The leaves of the recursive cut of ``piece`` (cells) at full-span gap lines (module
     docstring). ``lines_u`` = (strong mask boundaries, weak ones, image lines) across u
     (vertical lines), ``lines_v`` the same across v (horizontal lines), each bool [Gv, Gu];
@@ -131,7 +140,10 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
     ``coverage_handles`` of the weak kinds). ``wide_cells`` (> 0): a piece wider than this
     holds several fronts: its vertical cuts need no handles either side, and without such a
     cut it is cut at its best-covered column with any line cell in each third of its height, at
-    least ``wide_min_cells`` from its ends (until no piece is wider, or no column has one)."""
+    least ``wide_min_cells`` from its ends (until no piece is wider, or no column has one).
+    ``even_cells`` (> 0, with ``wide_cells``): a piece still too wide with no such column is cut
+    into max(2, round(width / ``even_cells``)) pieces of equal width (a run of modules of one
+    width), each cut again; ``log`` gets {"even_pieces": n, "cells": width} for each."""
     u0, u1, v0, v1 = piece
     if max_depth <= 0:
         return [piece]
@@ -142,6 +154,14 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
         ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)
         if ju >= 0:
             iv, cv = -1, 0.0
+        elif even_cells > 0:  # no line at all: equal pieces
+            n = max(2, int(round((u1 - u0) / even_cells)))
+            if log is not None:
+                log.append({"even_pieces": n, "cells": u1 - u0})
+            halves = [(a, b, v0, v1) for a, b in even_cuts(u0, u1, n)]
+            return [leaf for h in halves
+                    for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells,
+                                        max_depth - 1, wide_cells, wide_min_cells, even_cells, log)]
     if ju < 0 and iv < 0:
         return [piece]
     if cu >= cv:
@@ -150,16 +170,17 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
         halves = [(u0, u1, v0, iv), (u0, u1, iv + 1, v1)]
     return [leaf for h in halves
             for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells, max_depth - 1,
-                                wide_cells, wide_min_cells)]
+                                wide_cells, wide_min_cells, even_cells, log)]
 
 
-def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_rate: float, handle_min_views: int
-                ) -> list[Front]:
+def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_rate: float, handle_min_views: int,
+                log: list[dict] | None = None) -> list[Front]:
     """``front`` cut at its gap lines (:func:`xy_cuts` on the rectified front ``rf``'s instance
     boundaries and mean colour inside the rectangle; cells no view saw take the front's median
     grey; handle cells: rate >= ``handle_min_rate`` over >= ``handle_min_views`` views, also
     the least views a boundary needs); ``[front]`` when no line qualifies or nothing was seen.
-    Pieces keep the front's plane and axes."""
+    Pieces keep the front's plane and axes. ``log`` gets {"even_pieces": n, "width": m} for each
+    piece too wide and without a line that was cut into ``n`` equal pieces (``cfg.wide_even``)."""
     uu, vv = rf.uv()
     w, h = front.size
     cols = np.flatnonzero(np.abs(uu[0]) <= w / 2)
@@ -180,9 +201,12 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
         maps_v.append(np.zeros_like(iv) if bd is None else _widen(bd[1][np.ix_(rows, cols)], cfg.slack, 0))
     min_cells = max(1, int(np.ceil(cfg.min_piece / rf.res)))
     wide_cells = int(np.floor(cfg.max_width / rf.res)) if cfg.max_width else 0
+    even = []
     pieces = xy_cuts((*maps_u, iu), (*maps_v, iv), hmap, (0, len(cols), 0, len(rows)), cfg.coverage,
                      cfg.coverage_handles, min_cells, cfg.max_depth, wide_cells,
-                     max(1, int(np.ceil(cfg.wide_min_piece / rf.res))))
+                     max(1, int(np.ceil(cfg.wide_min_piece / rf.res))), cfg.wide_even / rf.res, even)
+    if log is not None:
+        log.extend({"even_pieces": e["even_pieces"], "width": round(e["cells"] * rf.res, 4)} for e in even)
     if len(pieces) == 1:
         return [front]
     c, u, v, res = np.asarray(front.center), np.asarray(front.u), front.v, rf.res

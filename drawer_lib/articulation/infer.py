@@ -85,11 +85,11 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
         front, used = fitted, 0
         if masks_of is not None:
             front, used = refine_with_masks(fitted, masks_of(s), fc)
-        pieces = [front]
+        pieces, even = [front], []  # even: the parts of it cut into equal pieces (split.wide_even)
         if cfg.split.enabled and cfg.rectify.enabled and views and any(v.image is not None for v in views):
             stems = {st for st, _ in s.matched}
             rf = rectify_front(front, views, cfg.rectify, np.array([v.stem in stems for v in views]))
-            pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views)
+            pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views, log=even)
         cuts: list[dict] = []  # the evidence of the mesh's cuts
         if cfg.split.depth_steps or cfg.split.extent_steps:
             pts, _ = sample_points(mesh, s.faces, fc.sample_per_m2, seed=0)
@@ -107,7 +107,7 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                 report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
                 continue
             info = ({"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
-                    | ({"mesh_cuts": cuts} if cuts else {}) | too_wide)
+                    | ({"mesh_cuts": cuts} if cuts else {}) | too_wide | ({"even_pieces": even} if even else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     plane_tol = 0.75 * cfg.joints.sliding_step[0]  # coplanar: closer than the nearest sliding track

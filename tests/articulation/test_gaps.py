@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from drawer_lib.articulation.config import SplitConfig
-from drawer_lib.articulation.gaps import split_front
+from drawer_lib.articulation.gaps import even_cuts, split_front
 from drawer_lib.articulation.rectify import RectifiedFront
 from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Front
@@ -136,8 +136,43 @@ def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
     assert len(split_front(narrow, _wide_rf(lines_u=[1.0]), SplitConfig(max_width=1.1), 0.3, 3)) == 2
 
 
+def test_even_cuts_are_equal_and_drop_the_cut_column():
+    assert even_cuts(0, 300, 3) == [(0, 100), (101, 200), (201, 300)]
+    assert even_cuts(10, 17, 2) == [(10, 14), (15, 17)]  # 3.5 rounds to even: 4
+    assert even_cuts(5, 9, 1) == [(5, 9)]
+    for n in (2, 3, 7):  # disjoint, in order, covering all but the n - 1 cut columns, equal within a cell
+        got = even_cuts(3, 503, n)
+        assert got[0][0] == 3 and got[-1][1] == 503 and sum(b - a for a, b in got) == 500 - (n - 1)
+        assert all(b0 < a1 for (_, b0), (a1, _) in zip(got, got[1:]))
+        assert max(b - a for a, b in got) - min(b - a for a, b in got) <= 2
+
+
+def test_a_front_too_wide_with_no_line_is_cut_into_equal_pieces():
+    """The 2.0 m run of wall doors with no line anywhere: whole with wide_even off (the default
+    until measured); at 0.6 m, three pieces of 2.0 / 3 m (round(3.33)), recorded in the log; at
+    0.5 m, four; a line where there is one is cut first, and only a piece still too wide without
+    one is cut evenly (1.5 m at 0.6 m: round(2.5) = 2 pieces of 0.75 m); a front up to max_width
+    is never cut evenly, nor with max_width off."""
+    rf = _wide_rf()
+    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == [WIDE]
+    log = []
+    sizes = _sizes(split_front(WIDE, rf, SplitConfig(wide_even=0.6), 0.3, 3, log=log))
+    assert len(sizes) == 3 and all(w == pytest.approx(2.0 / 3, abs=0.01) and h == 0.7 for w, h in sizes)
+    assert log == [{"even_pieces": 3, "width": pytest.approx(2.0, abs=0.01)}]
+    assert len(split_front(WIDE, rf, SplitConfig(wide_even=0.5), 0.3, 3)) == 4
+    # a line at 0.5 m cuts first; the 1.5 m piece beyond it has none: two pieces of 0.75 m
+    log = []
+    sizes = _sizes(split_front(WIDE, _wide_rf(lines_u=[0.5]), SplitConfig(wide_even=0.6), 0.3, 3, log=log))
+    assert sizes == [(0.5, 0.7), (0.75, 0.7), (0.75, 0.7)] and [e["even_pieces"] for e in log] == [2]
+    narrow = Front(WIDE.center, WIDE.normal, WIDE.u, (1.2, 0.7))
+    assert split_front(narrow, _wide_rf(), SplitConfig(wide_even=0.6), 0.3, 3) == [narrow]
+    assert split_front(WIDE, rf, SplitConfig(max_width=0.0), 0.3, 3) == [WIDE]
+
+
 @pytest.mark.parametrize("bad", [{"coverage": 0.0}, {"boundary_rate": 1.5}, {"min_piece": 0.0}, {"step": 0},
-                                 {"max_width": -1.0}, {"wide_min_piece": 0.0}, {"max_width": 0.3, "wide_min_piece": 0.2}])
+                                 {"max_width": -1.0}, {"wide_min_piece": 0.0}, {"max_width": 0.3, "wide_min_piece": 0.2},
+                                 {"wide_even": 0.1}, {"wide_even": 1.5}, {"wide_even": -0.6}, {"wide_even": float("nan")},
+                                 {"wide_even": 0.6, "max_width": 0.0}])
 def test_config_checked(bad):
     with pytest.raises(ConfigError, match="articulate.split"):
         SplitConfig(**bad)
