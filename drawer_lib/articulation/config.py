@@ -188,8 +188,9 @@ class SplitConfig:
     wider than this holds several fronts (catalogue doors stop near 0.6 m, drawers and flaps
     near 1.2 m): its vertical cuts need no handle on either side, and with no such cut it is cut
     at its best-covered column all the same, at least ``wide_min_piece`` (m) from its ends.
-    ``wide_even`` (m; 0: off): a piece still too wide with no line at all is cut into
-    max(2, round(width / ``wide_even``)) pieces of equal width (a run of modules of one width)."""
+    ``wide_even`` (m; 0: off; nothing with ``max_width`` off): a piece still too wide with no line
+    at all is cut into max(2, round(width / ``wide_even``)) pieces of equal width (a run of
+    modules of one width)."""
 
     enabled: bool = True
     boundary_rate: float = 0.1
@@ -209,7 +210,7 @@ class SplitConfig:
     extent_min_step: float = 0.05
     max_width: float = 1.3
     wide_min_piece: float = 0.2
-    wide_even: float = 0.0
+    wide_even: float = 0.6
 
     def __post_init__(self):
         if not 0 < self.duplicate_iou <= 1:
@@ -219,9 +220,10 @@ class SplitConfig:
         if self.max_width < 0 or not self.wide_min_piece > 0 or (self.max_width and self.max_width < 2 * self.wide_min_piece):
             raise ConfigError(f"articulate.split: need max_width >= 0 (0: off) and wide_min_piece > 0, at most half of it; "
                               f"got {self.max_width}, {self.wide_min_piece}")
-        if not (self.wide_even == 0 or (self.max_width > 0 and self.wide_min_piece <= self.wide_even <= self.max_width)):
+        if not (self.wide_even == 0 or (self.wide_even >= self.wide_min_piece
+                                         and (self.max_width == 0 or self.wide_even <= self.max_width))):
             raise ConfigError(f"articulate.split.wide_even = {self.wide_even}: 0 (off), or between wide_min_piece "
-                              f"({self.wide_min_piece}) and max_width ({self.max_width}), which must be on")
+                              f"({self.wide_min_piece}) and max_width ({self.max_width})")
         if not 0 < self.depth_bin <= 0.1:
             raise ConfigError(f"articulate.split.depth_bin = {self.depth_bin} must be in (0, 0.1] m")
         if self.step < 1 or self.max_depth < 0 or self.slack < 0:

@@ -122,11 +122,24 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
     return lo + (j + k) // 2, float(score[j])
 
 
-def even_cuts(u0: int, u1: int, n: int) -> list[tuple[int, int]]:
+def even_cuts(u0: int, u1: int, n: int, blocked: np.ndarray | None = None) -> list[tuple[int, int]]:
     """[u0, u1) cut into ``n`` >= 1 column ranges of equal width (give or take a cell), the
-    column of each cut dropped as a gap is: [(a, b)], b exclusive, left to right."""
-    at = [u0 + int(round(k * (u1 - u0) / n)) for k in range(n + 1)]
-    return [(at[k] + (k > 0), at[k + 1]) for k in range(n)]
+    column of each cut dropped as a gap is: [(a, b)], b exclusive, left to right. ``blocked``
+    [u1 - u0] (bool): columns no cut may take (a handle's): a cut there moves to the nearest
+    free column less than half a piece away, or is not made."""
+    step = (u1 - u0) / n
+    at = []
+    for k in range(1, n):
+        c = int(round(k * step))
+        if blocked is not None and blocked[c]:
+            free = np.flatnonzero(~blocked)
+            free = free[np.abs(free - c) < step / 2]
+            if not len(free):
+                continue
+            c = int(free[np.argmin(np.abs(free - c))])
+        at.append(u0 + c)
+    edges = [u0 - 1, *at, u1]
+    return [(edges[k] + 1, edges[k + 1]) for k in range(len(edges) - 1)]
 
 
 def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], handle: np.ndarray,
@@ -143,7 +156,8 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
     least ``wide_min_cells`` from its ends (until no piece is wider, or no column has one).
     ``even_cells`` (> 0, with ``wide_cells``): a piece still too wide with no such column is cut
     into max(2, round(width / ``even_cells``)) pieces of equal width (a run of modules of one
-    width), each cut again; ``log`` gets {"even_pieces": n, "cells": width} for each."""
+    width; a cut on a handle moves off it, :func:`even_cuts`), each cut again; ``log`` gets
+    {"even_pieces": n, "cells": width} for each."""
     u0, u1, v0, v1 = piece
     if max_depth <= 0:
         return [piece]
@@ -156,9 +170,11 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
             iv, cv = -1, 0.0
         elif even_cells > 0:  # no line at all: equal pieces
             n = max(2, int(round((u1 - u0) / even_cells)))
+            halves = [(a, b, v0, v1) for a, b in even_cuts(u0, u1, n, handle[v0:v1, u0:u1].any(0))]
+            if len(halves) == 1:
+                return [piece]
             if log is not None:
-                log.append({"even_pieces": n, "cells": u1 - u0})
-            halves = [(a, b, v0, v1) for a, b in even_cuts(u0, u1, n)]
+                log.append({"even_pieces": len(halves), "cells": u1 - u0})
             return [leaf for h in halves
                     for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells,
                                         max_depth - 1, wide_cells, wide_min_cells, even_cells, log)]

@@ -110,7 +110,7 @@ def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
     """Four 0.5 m doors joined in every view, no handle found: off (max_width 0), one front; at
     1.3 m (the default), cut at the image lines until no piece is wider (the 1.0 m pair left at the end stays
     one, as a front of 1.0 m may be); with max_width 0.9, all four. A wide front without any line, or with
-    lines only near its ends, stays whole."""
+    lines only near its ends, stays whole with wide_even off."""
     rf = _wide_rf(lines_u=[0.5, 1.0, 1.5])
     assert split_front(WIDE, rf, SplitConfig(max_width=0.0), 0.3, 3) == [WIDE]
     assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3)
@@ -118,8 +118,9 @@ def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
     assert sum(w for w, _ in sizes) == pytest.approx(2.0, abs=0.02) and max(w for w, _ in sizes) <= 1.3
     assert sizes == [(0.5, 0.7), (0.5, 0.7), (1.0, 0.7)]  # 0.5 | 1.5, and the 1.5 m piece once more
     assert _sizes(split_front(WIDE, rf, SplitConfig(max_width=0.9), 0.3, 3)) == [(0.5, 0.7)] * 4
-    assert split_front(WIDE, _wide_rf(), SplitConfig(max_width=1.3), 0.3, 3) == [WIDE]
-    assert split_front(WIDE, _wide_rf(lines_u=[0.06, 1.94]), SplitConfig(max_width=1.3), 0.3, 3) == [WIDE]
+    off = SplitConfig(max_width=1.3, wide_even=0.0)  # the fallback alone: no equal pieces
+    assert split_front(WIDE, _wide_rf(), off, 0.3, 3) == [WIDE]
+    assert split_front(WIDE, _wide_rf(lines_u=[0.06, 1.94]), off, 0.3, 3) == [WIDE]
     # a line too faint for a cut (in one row of four: under coverage_handles) is still the best one there
     rf = _wide_rf(lines_u=[0.8])
     col = int(0.8 / RES)
@@ -129,7 +130,7 @@ def test_a_front_too_wide_to_be_one_is_cut_at_its_lines_without_handles():
     assert _sizes(split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3)) == [(0.8, 0.7), (1.2, 0.7)]
     # a handle on the line is never cut through
     knob = [(0.48, 0.52, 0.3, 0.4)]
-    assert split_front(WIDE, _wide_rf(lines_u=[0.5], handles=knob), SplitConfig(max_width=1.3), 0.3, 3) == [WIDE]
+    assert split_front(WIDE, _wide_rf(lines_u=[0.5], handles=knob), off, 0.3, 3) == [WIDE]
     # a front up to max_width keeps the old rule: an image line cuts only between two handles
     narrow = Front(WIDE.center, WIDE.normal, WIDE.u, (1.2, 0.7))  # the middle 1.2 m of the rectified front
     assert split_front(narrow, _wide_rf(lines_u=[1.0]), SplitConfig(max_width=1.3), 0.3, 3) == [narrow]
@@ -145,16 +146,25 @@ def test_even_cuts_are_equal_and_drop_the_cut_column():
         assert got[0][0] == 3 and got[-1][1] == 503 and sum(b - a for a, b in got) == 500 - (n - 1)
         assert all(b0 < a1 for (_, b0), (a1, _) in zip(got, got[1:]))
         assert max(b - a for a, b in got) - min(b - a for a, b in got) <= 2
+    # no cut on a handle: it moves to the nearest free column less than half a piece away, or is not made
+    knob = np.zeros(300, bool)
+    knob[95:110] = True
+    assert even_cuts(0, 300, 3, knob) == [(0, 94), (95, 200), (201, 300)]
+    bar = np.zeros(300, bool)
+    bar[40:160] = True
+    assert even_cuts(0, 300, 3, bar) == [(0, 200), (201, 300)]
+    assert even_cuts(0, 300, 2, np.ones(300, bool)) == [(0, 300)]
 
 
 def test_a_front_too_wide_with_no_line_is_cut_into_equal_pieces():
-    """The 2.0 m run of wall doors with no line anywhere: whole with wide_even off (the default
-    until measured); at 0.6 m, three pieces of 2.0 / 3 m (round(3.33)), recorded in the log; at
+    """The 2.0 m run of wall doors with no line anywhere: whole with wide_even off; at 0.6 m
+    (the default), three pieces of 2.0 / 3 m (round(3.33)), recorded in the log; at
     0.5 m, four; a line where there is one is cut first, and only a piece still too wide without
     one is cut evenly (1.5 m at 0.6 m: round(2.5) = 2 pieces of 0.75 m); a front up to max_width
     is never cut evenly, nor with max_width off."""
     rf = _wide_rf()
-    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == [WIDE]
+    assert split_front(WIDE, rf, SplitConfig(wide_even=0.0), 0.3, 3) == [WIDE]
+    assert split_front(WIDE, rf, SplitConfig(), 0.3, 3) == split_front(WIDE, rf, SplitConfig(wide_even=0.6), 0.3, 3)
     log = []
     sizes = _sizes(split_front(WIDE, rf, SplitConfig(wide_even=0.6), 0.3, 3, log=log))
     assert len(sizes) == 3 and all(w == pytest.approx(2.0 / 3, abs=0.01) and h == 0.7 for w, h in sizes)
@@ -164,6 +174,9 @@ def test_a_front_too_wide_with_no_line_is_cut_into_equal_pieces():
     log = []
     sizes = _sizes(split_front(WIDE, _wide_rf(lines_u=[0.5]), SplitConfig(wide_even=0.6), 0.3, 3, log=log))
     assert sizes == [(0.5, 0.7), (0.75, 0.7), (0.75, 0.7)] and [e["even_pieces"] for e in log] == [2]
+    # a knob where an even cut would fall: the cut moves off it
+    sizes = _sizes(split_front(WIDE, _wide_rf(handles=[(0.62, 0.7, 0.3, 0.4)]), SplitConfig(), 0.3, 3))
+    assert sizes == [(0.63, 0.7), (0.67, 0.7), (0.7, 0.7)]  # 0 | 0.70 (not 0.67) | 1.33 | 2.0
     narrow = Front(WIDE.center, WIDE.normal, WIDE.u, (1.2, 0.7))
     assert split_front(narrow, _wide_rf(), SplitConfig(wide_even=0.6), 0.3, 3) == [narrow]
     assert split_front(WIDE, rf, SplitConfig(max_width=0.0), 0.3, 3) == [WIDE]
@@ -171,8 +184,7 @@ def test_a_front_too_wide_with_no_line_is_cut_into_equal_pieces():
 
 @pytest.mark.parametrize("bad", [{"coverage": 0.0}, {"boundary_rate": 1.5}, {"min_piece": 0.0}, {"step": 0},
                                  {"max_width": -1.0}, {"wide_min_piece": 0.0}, {"max_width": 0.3, "wide_min_piece": 0.2},
-                                 {"wide_even": 0.1}, {"wide_even": 1.5}, {"wide_even": -0.6}, {"wide_even": float("nan")},
-                                 {"wide_even": 0.6, "max_width": 0.0}])
+                                 {"wide_even": 0.1}, {"wide_even": 1.5}, {"wide_even": -0.6}, {"wide_even": float("nan")}])
 def test_config_checked(bad):
     with pytest.raises(ConfigError, match="articulate.split"):
         SplitConfig(**bad)
