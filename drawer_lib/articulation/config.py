@@ -262,6 +262,10 @@ class TypesConfig:
     side-hinged door nor a top-hinged flap (a hinged front needs room for its hinges; kitchen
     makers' doors and flaps start near 0.3 m, drawers at 0.1 m; a bottom-hinged tilt-out stays
     possible); null turns this off.
+    ``window_contrast`` (grey level in [0, 1]): the score rule types a front whose panel stands
+    this far or more off its frame's grey on its rectified image (a window:
+    :func:`~drawer_lib.articulation.rectify.window_contrast`) no drawer (an oven, a microwave, a
+    glass door; a drawer front is opaque); null turns this off.
     ``drawer_max_height`` (m): where the score rule's ``tall`` feature starts (a front taller
     than the deepest drawers, which stop near 0.4 m in real kitchens, is a door or a flap).
     ``front_labels``: the labels, besides ``door_labels`` and ``drawer_labels``, a detector
@@ -278,6 +282,7 @@ class TypesConfig:
     low_margin: float = 1.0
     sliding_needs_track: bool = True
     hinged_min_height: float | None = 0.2
+    window_contrast: float | None = None
     drawer_max_height: float = 0.45
     edge_frac: float = 0.3
     use_labels: bool = True
@@ -296,6 +301,9 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.rule = {self.rule!r} must be score or handle")
         if self.weights not in ("fitted", "prior"):
             raise ConfigError(f"articulate.types.weights = {self.weights!r} must be fitted or prior")
+        if self.window_contrast is not None and not 0 < self.window_contrast < 1:
+            raise ConfigError(f"articulate.types.window_contrast = {self.window_contrast} must be in (0, 1) "
+                              "(a grey level) or null")
         if not 0 < self.edge_frac < 0.5:
             raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if self.min_support < 0:

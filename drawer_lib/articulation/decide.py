@@ -58,7 +58,8 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
     common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels, cfg.drawer_max_height)
     door = {side: door_features(ev, side) for side in ("left", "right")}
     all_scores = score(common, door, weights)
-    unseen = missing_evidence(common, cfg) | {k: v for k, v in (blocked or {}).items() if k != "fixed"}
+    unseen = (missing_evidence(common, cfg) | glazed(ev, cfg)
+              | {k: v for k, v in (blocked or {}).items() if k != "fixed"})
     scores = {k: v for k, v in all_scores.items() if k not in unseen}
     best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
     runner_up, margin, conf = margin_confidence(scores, best)
@@ -90,6 +91,16 @@ def missing_evidence(common: dict[str, float], cfg: TypesConfig) -> dict[str, st
         why = f"{common['height']:.2f} m tall < hinged_min_height {cfg.hinged_min_height} m: no room for hinges"
         out.update(dict.fromkeys(("door_left", "door_right", "flap_top"), why))
     return out
+
+
+def glazed(ev: Evidence, cfg: TypesConfig) -> dict[str, str]:
+    """``{"drawer": why}`` when the front's window contrast (``ev.window``,
+    :func:`~drawer_lib.articulation.rectify.window_contrast`) reaches ``cfg.window_contrast``: a
+    glazed front (an oven's or a microwave's door, a glass door) is hinged, never a drawer; else {}."""
+    if cfg.window_contrast is None or ev.window is None or ev.window < cfg.window_contrast:
+        return {}
+    return {"drawer": f"a window: its panel stands {ev.window:.2f} off its frame's grey (>= window_contrast "
+                      f"{cfg.window_contrast}): a glazed door, not a drawer"}
 
 
 def margin_confidence(scores: dict[str, float], best: str) -> tuple[str, float, float]:

@@ -30,7 +30,7 @@ from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, f
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
 from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_extent, rail_run
 from drawer_lib.articulation.gaps import border_lines, depth_step_cuts, extent_step_cuts, split_front
-from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts
+from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts, window_contrast
 from drawer_lib.articulation.scoring import Evidence
 from drawer_lib.articulation.vocab import Decision, Handle
 from drawer_lib.geometry.frames import UP
@@ -250,10 +250,13 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             if obstacles is not None:
                 terms["interaction"] = interaction_evidence(fr, obstacles, cfg.joints, cfg.interaction, carcass)
                 blocked = blocked_hypotheses(terms["interaction"], cfg.interaction)
+            window = window_contrast(fr, rfs[k]) if rfs is not None else None
+            if window is not None:
+                terms["window"] = round(window, 4)
             ev = Evidence(handle=h, size=fr.size, z_mid=float(fr.center[2]) - floor_z, stacked=neighbours[k][0],
                           beside_left=neighbours[k][1], beside_right=neighbours[k][2], partner=k in partner,
                           rail=rail_extent(fr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside), carcass=carcass,
-                          labels=s.labels, support=s.support, flanked=is_flanked)
+                          labels=s.labels, support=s.support, flanked=is_flanked, window=window)
             dec, score_terms = decide_by_score(ev, cfg.types, weights, blocked)
             terms |= score_terms
         elif k in partner:

@@ -82,6 +82,34 @@ class RectifiedFront:
         return np.where(ok, self.handle / np.maximum(self.handle_seen, 1), 0.0)
 
 
+WINDOW_INNER = ((0.2, 0.8), (0.25, 0.7))  # a window's panel: these fractions of a front's width and height
+WINDOW_RING = (0.08, 0.1, 0.8)  # its frame: the outer fraction of the width either side and of the height at the
+# bottom, below this fraction of the height (clear of a pull along the top)
+
+
+def window_contrast(front: Front, rf: RectifiedFront, min_cells: int = 20) -> float | None:
+    """How much the middle of ``front`` differs from its frame on the rectified image ``rf``:
+    |median grey of the frame - median grey of the panel| in [0, 1] (:data:`WINDOW_INNER`,
+    :data:`WINDOW_RING`; grey = mean of the colour channels, cells no view saw left out). An
+    oven's or a microwave's window and a glass door's pane stand out by a quarter of the grey
+    range or more; a drawer's or a plain door's panel is its frame's colour. A median ignores a
+    pull across part of the panel. None without an image or with fewer than ``min_cells`` seen
+    cells in either region."""
+    if rf.rgb is None:
+        return None
+    uu, vv = rf.uv()
+    a, b = uu / front.size[0] + 0.5, vv / front.size[1] + 0.5  # 0..1 across the front
+    g = rf.rgb.mean(axis=2)
+    ok = np.isfinite(g) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1)
+    (a0, a1), (b0, b1) = WINDOW_INNER
+    side, bottom, top = WINDOW_RING
+    inner = ok & (a > a0) & (a < a1) & (b > b0) & (b < b1)
+    ring = ok & ((a < side) | (a > 1 - side) | (b < bottom)) & (b < top)
+    if inner.sum() < min_cells or ring.sum() < min_cells:
+        return None
+    return float(abs(np.median(g[ring]) - np.median(g[inner])))
+
+
 def front_grid(front: Front, res: float, margin: float) -> tuple[float, float, int, int]:
     """(u0, v0, Gu, Gv): the grid covering the rectangle grown by ``margin`` on every side."""
     w, h = front.size

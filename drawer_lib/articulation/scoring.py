@@ -66,6 +66,7 @@ class Evidence:
     labels: dict  # label votes
     support: int  # views whose detections matched the segment
     flanked: bool = False  # the surface runs on flush at both sides, hardly a gap round it (infer.flanked)
+    window: float | None = None  # rectify.window_contrast: a glazed panel stands out from its frame (None: no image)
 
 
 def _ramp(d: float) -> float:

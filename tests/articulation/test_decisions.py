@@ -256,3 +256,25 @@ def test_object_share_of_label_votes():
     assert t.object_share({"box": 4}) == 1.0
     assert t.object_share({"object": 1, "front": 3}) == 0.25
     assert TypesConfig(front_labels=[]).object_share({"front": 2, "drawer": 2}) == 0.5
+
+
+@pytest.mark.parametrize("window, threshold, excluded", [
+    (0.35, 0.15, True), (0.15, 0.15, True), (0.149, 0.15, False), (0.02, 0.15, False), (None, 0.15, False),
+    (0.35, None, False),
+])
+def test_a_glazed_front_is_no_drawer(window, threshold, excluded):
+    """``types.window_contrast``: an oven door with its bar along the top and no label (a drawer
+    on the prior weights) is excluded from the drawers once its window stands the threshold off
+    its frame, and then typed the bottom-hinged flap it is; no image (None) or null: off."""
+    types = dataclasses.replace(CFG.types, window_contrast=threshold)
+    ev = Evidence(handle=Handle(0.5, 0.92, "horizontal", 60, "images"), size=(0.6, 0.45), z_mid=0.55, stacked=1,
+                  beside_left=True, beside_right=True, partner=False, rail=0.0, carcass=0.5, labels={}, support=30,
+                  window=window)
+    dec, rec = decide_by_score(ev, types, PRIOR)
+    assert ("drawer" in rec["excluded"]) == excluded
+    if excluded:
+        assert "a window" in rec["excluded"]["drawer"] and (dec.family, dec.hinge) == ("flap", "bottom")
+    else:
+        assert dec.family == "drawer"
+    with pytest.raises(ConfigError, match="window_contrast"):
+        TypesConfig(window_contrast=1.5)

@@ -388,3 +388,28 @@ def test_a_rectangle_or_a_small_step_is_not_cut():
     ragged = np.concatenate([_rect_points(rng, -0.425, 0.0, -0.41, 0.38), _rect_points(rng, 0.0, 0.425, -0.41, 0.41)])
     assert extent_step_cuts(f, ragged, scene, owner, 1, 0.05, 0.1) == [f]  # a 3 cm step: under min_step
     assert extent_step_cuts(f, np.zeros((0, 3)), scene, owner, 1, 0.05, 0.1) == [f]
+
+
+def test_window_contrast_reads_a_pane_not_a_pull():
+    """An oven door 0.6 x 0.45 m: a dark pane inset 6 cm (sides) / 8 and 12 cm (bottom / top)
+    stands 0.4 off the frame; the same door with no pane, or a plain drawer with a dark bar
+    across its middle (a pull over less than half the panel), stands ~0 off; a panel no view saw
+    gives None, as does a front with no image."""
+    from drawer_lib.articulation.rectify import window_contrast
+
+    door = Front((0.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.45))
+    rf = _rf(front=door)
+    assert window_contrast(door, rf) == pytest.approx(0.0, abs=0.01)
+    gv, gu = rf.shape
+    uu, vv = (np.arange(gu) + 0.5) * RES, (np.arange(gv) + 0.5) * RES
+    pane = ((vv > 0.08) & (vv < 0.45 - 0.12))[:, None] & ((uu > 0.06) & (uu < 0.54))[None, :]
+    rf.rgb[pane] = 0.1
+    assert window_contrast(door, rf) == pytest.approx(0.4, abs=0.01)
+    bar = _rf(front=door)
+    bar.rgb[(np.abs(vv - 0.22) < 0.015)[:, None] & (np.abs(uu - 0.3) < 0.1)[None, :]] = 0.05
+    assert window_contrast(door, bar) == pytest.approx(0.0, abs=0.01)
+    blind = _rf(front=door)
+    blind.rgb[pane] = np.nan
+    assert window_contrast(door, blind) is None
+    blind.rgb = None
+    assert window_contrast(door, blind) is None
