@@ -145,7 +145,7 @@ def even_cuts(u0: int, u1: int, n: int, blocked: np.ndarray | None = None) -> li
 def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], handle: np.ndarray,
             piece: Piece, coverage: float, coverage_handles: float, min_cells: int, max_depth: int,
             wide_cells: int = 0, wide_min_cells: int = 1, even_cells: float = 0.0,
-            log: list[dict] | None = None) -> list[Piece]:
+            log: list[tuple[int, int]] | None = None) -> list[Piece]:
     """The leaves of the recursive cut of ``piece`` (cells) at full-span gap lines (module
     docstring). ``lines_u`` = (strong mask boundaries, weak ones, image lines) across u
     (vertical lines), ``lines_v`` the same across v (horizontal lines), each bool [Gv, Gu];
@@ -157,7 +157,7 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
     ``even_cells`` (> 0, with ``wide_cells``): a piece still too wide with no such column is cut
     into max(2, round(width / ``even_cells``)) pieces of equal width (a run of modules of one
     width; a cut on a handle moves off it, :func:`even_cuts`), each cut again; ``log`` gets
-    {"even_pieces": n, "cells": width} for each."""
+    (pieces, width in cells) for each."""
     u0, u1, v0, v1 = piece
     if max_depth <= 0:
         return [piece]
@@ -174,7 +174,7 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
             if len(halves) == 1:
                 return [piece]
             if log is not None:
-                log.append({"even_pieces": len(halves), "cells": u1 - u0})
+                log.append((len(halves), u1 - u0))
             return [leaf for h in halves
                     for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells,
                                         max_depth - 1, wide_cells, wide_min_cells, even_cells, log)]
@@ -217,12 +217,12 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
         maps_v.append(np.zeros_like(iv) if bd is None else _widen(bd[1][np.ix_(rows, cols)], cfg.slack, 0))
     min_cells = max(1, int(np.ceil(cfg.min_piece / rf.res)))
     wide_cells = int(np.floor(cfg.max_width / rf.res)) if cfg.max_width else 0
-    even = []
+    even: list[tuple[int, int]] = []
     pieces = xy_cuts((*maps_u, iu), (*maps_v, iv), hmap, (0, len(cols), 0, len(rows)), cfg.coverage,
                      cfg.coverage_handles, min_cells, cfg.max_depth, wide_cells,
                      max(1, int(np.ceil(cfg.wide_min_piece / rf.res))), cfg.wide_even / rf.res, even)
     if log is not None:
-        log.extend({"even_pieces": e["even_pieces"], "width": round(e["cells"] * rf.res, 4)} for e in even)
+        log.extend({"even_pieces": n, "width": round(cells * rf.res, 4)} for n, cells in even)
     if len(pieces) == 1:
         return [front]
     c, u, v, res = np.asarray(front.center), np.asarray(front.u), front.v, rf.res

@@ -215,6 +215,7 @@ def _overlaps(front: Front, gt: list[Part]) -> np.ndarray:
     """[len(gt)] :func:`front_overlap` of a predicted ``front`` with each true part's front."""
     return np.array([front_overlap(front, g.front) for g in gt]) if gt else np.zeros(0)
 
+
 def axis_segment(part: Part) -> np.ndarray:
     """[2, 3] the stretch of a part's axis line that spans its front."""
     o, d = np.asarray(part.axis.origin), np.asarray(part.axis.direction)
