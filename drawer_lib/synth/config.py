@@ -66,9 +66,13 @@ class LayoutConfig:
     slot in the front), none; ``no_handle_p``: each front independently has no handle
     (push-to-open). ``microwaves``: microwave ovens on the counter (a side-hinged door), each
     turned by a yaw drawn from ``microwave_yaw_deg``; ``yaw_deg``: the whole kitchen turns by a
-    yaw drawn from this range about the vertical (cabinets not aligned with the world axes).
+    yaw drawn from this range about the vertical (cabinets not aligned with the world axes);
+    ``repeat_p``: each drawn base or wall module takes its left neighbour's type and width with
+    this probability, so runs of equal modules appear as a planner lays them out (two singles
+    where a double would do, a bank of drawers; fixed fronts, appliances and the only module of
+    a required type are neither copied nor replaced).
     The defaults of the keys added after the first release (tall_types, tall_width,
-    microwaves, microwave_yaw_deg, yaw_deg, no_handle_p, modules) leave earlier kitchens unchanged.
+    microwaves, microwave_yaw_deg, yaw_deg, no_handle_p, repeat_p, modules) leave earlier kitchens unchanged.
 
     ``modules`` writes the kitchen by hand instead of drawing it: ``base`` and ``wall`` are the
     runs from left to right as ``[type, width m]`` (base types and ``appliance`` / ``sink``, the
@@ -109,6 +113,7 @@ class LayoutConfig:
     microwave_yaw_deg: list[float] = field(default_factory=lambda: [-35.0, 35.0])
     yaw_deg: list[float] = field(default_factory=lambda: [0.0, 0.0])
     no_handle_p: float = 0.0
+    repeat_p: float = 0.0
     modules: dict[str, list[list[str | float]]] | None = None
 
     def __post_init__(self):
@@ -138,6 +143,7 @@ class LayoutConfig:
             r = getattr(self, name)
             _check(len(r) == 2 and -90.0 <= r[0] <= r[1] <= 90.0, f"layout.{name} = {r} must be [lo, hi] within [-90, 90]")
         _check(0.0 <= self.no_handle_p < 1.0, f"layout.no_handle_p = {self.no_handle_p} must be in [0, 1)")
+        _check(0.0 <= self.repeat_p <= 1.0, f"layout.repeat_p = {self.repeat_p} must be in [0, 1]")
         _check(bool(self.module_widths) and all(0.25 <= w <= 1.0 for w in self.module_widths),
                f"layout.module_widths {self.module_widths} must be in [0.25, 1.0] m")
         _check(0 < self.front_gap < 0.02, f"layout.front_gap = {self.front_gap} must be in (0, 0.02) m")

@@ -19,7 +19,7 @@ import numpy as np
 from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Front
 from drawer_lib.synth import textures as tex
-from drawer_lib.synth.config import BASE_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
+from drawer_lib.synth.config import BASE_TYPES, FIXED_TYPES, WALL_TYPES, LayoutConfig, SynthConfig
 from drawer_lib.synth.meshes import UVMesh, box_between, concat, cylinder, lathe, torus_arc
 
 OUT = np.array([0.0, -1.0, 0.0])  # outward normal of every front
@@ -712,6 +712,30 @@ def _width(rng: np.random.Generator, L: LayoutConfig, kind: str) -> float:
     return float(rng.choice(L.module_widths))
 
 
+NOT_REPEATED = FIXED_TYPES + ("oven", "dishwasher")  # kinds a run of equal modules neither copies nor replaces
+
+
+def repeat_runs(rng: np.random.Generator, kinds: list[str], widths: list[float], p: float,
+                required: list[str], max_total: float = np.inf) -> tuple[list[str], list[float]]:
+    """Runs of equal modules (``LayoutConfig.repeat_p``): left to right, module ``k`` takes module
+    ``k - 1``'s kind and width with probability ``p``, unless either is in :data:`NOT_REPEATED`,
+    module ``k`` holds the only module of a required kind, or the run (widths in m) would be
+    longer than ``max_total`` after the copy (a wall run must fit over the base run, or modules
+    are dropped from it). One draw per module from ``rng`` (after any earlier copy, so a run can grow).
+    Returns new lists; the inputs are not changed."""
+    kinds, widths = list(kinds), list(widths)
+    for k in range(1, len(kinds)):
+        copy = rng.random() < p
+        if not copy or kinds[k - 1] in NOT_REPEATED or kinds[k] in NOT_REPEATED:
+            continue
+        if kinds[k] in required and kinds.count(kinds[k]) == 1:
+            continue
+        if sum(widths) - widths[k] + widths[k - 1] > max_total:
+            continue
+        kinds[k], widths[k] = kinds[k - 1], widths[k - 1]
+    return kinds, widths
+
+
 def sample_layout(cfg: SynthConfig) -> KitchenLayout:
     """Draw a kitchen from ``cfg.seed`` (reproducible: same seed and config, same kitchen)."""
     rng = np.random.default_rng(cfg.seed)
@@ -728,6 +752,10 @@ def sample_layout(cfg: SynthConfig) -> KitchenLayout:
         wall_kinds = _sample_types(rng, L.wall_modules, L.wall_types, req_wall, 0)
         base_w = [_width(rng, L, k) for k in base_kinds]
         wall_w = [_width(rng, L, k) for k in wall_kinds]
+        if L.repeat_p > 0:  # its own stream: repeat_p 0 leaves every kitchen as it was
+            rr = np.random.default_rng([cfg.seed, 5])
+            base_kinds, base_w = repeat_runs(rr, base_kinds, base_w, L.repeat_p, req_base)
+            wall_kinds, wall_w = repeat_runs(rr, wall_kinds, wall_w, L.repeat_p, req_wall, sum(base_w))
     else:  # written by hand (LayoutConfig.modules)
         base_kinds, base_w = [str(t) for t, _ in L.modules["base"]], [float(w) for _, w in L.modules["base"]]
         wall = L.modules.get("wall") or []

@@ -386,3 +386,51 @@ def test_a_written_kitchen_that_cannot_be_built_is_refused(modules, msg):
         return
     with pytest.raises(ConfigError, match=msg):
         hand_config(d)
+
+
+def test_runs_of_equal_modules_copy_the_left_neighbour():
+    """repeat_runs: at p = 1 every module copies its left neighbour (a whole run of one kind and
+    width) except fixed fronts, appliances and the only module of a required kind; at p = 0
+    nothing changes; the inputs are not modified."""
+    from drawer_lib.synth.layout import repeat_runs
+
+    kinds = ["door", "drawers", "sink", "door", "oven", "flap_down", "drawer_door"]
+    widths = [0.4, 0.6, 0.9, 0.45, 0.6, 0.5, 0.5]
+    rng = np.random.default_rng(0)
+    k1, w1 = repeat_runs(rng, kinds, widths, 1.0, required=["drawers"])
+    # drawers is required and the only one: kept; the sink and the oven neither copy nor are copied
+    assert k1 == ["door", "drawers", "sink", "door", "oven", "flap_down", "flap_down"]
+    assert w1 == [0.4, 0.6, 0.9, 0.45, 0.6, 0.5, 0.5]
+    k2, w2 = repeat_runs(rng, kinds, widths, 1.0, required=[])
+    assert k2[:2] == ["door", "door"] and w2[:2] == [0.4, 0.4]
+    assert (k2, w2) != (kinds, widths) and kinds[1] == "drawers"  # inputs untouched
+    assert repeat_runs(rng, kinds, widths, 0.0, required=[]) == (kinds, widths)
+    # a wall run may not grow past the base run it hangs over (a required module would be dropped)
+    wall = (["sliding", "double_door", "flap_up"], [0.9, 0.8, 0.4])
+    assert repeat_runs(rng, *wall, 1.0, required=["flap_up"], max_total=2.15) == wall
+    assert repeat_runs(rng, *wall, 1.0, required=["flap_up"], max_total=2.2)[1] == [0.9, 0.9, 0.4]
+    assert repeat_runs(rng, ["door", "door"], [0.5, 0.4], 1.0, required=[], max_total=0.8)[1] == [0.5, 0.4]
+
+
+def test_repeat_p_draws_runs_and_leaves_other_kitchens_alone():
+    """layout.repeat_p: with it, equal neighbours are far more common than the drawn kitchens
+    have them, every required kind is still there, and the same seed gives the same kitchen;
+    0 (the default) gives every kitchen as before (the hash test above pins seed 0)."""
+    from drawer_lib.errors import ConfigError
+
+    def equal_pairs(cfg):
+        parts = [e for e in sample_layout(cfg).parts() if e.articulated and e.front.center[2] < 1.0]
+        ws = sorted((round(float(e.front.center[0]), 3), round(float(e.front.size[0]), 3), e.family) for e in parts)
+        return sum(a[1:] == b[1:] for a, b in zip(ws, ws[1:]))
+
+    base = [SynthConfig(seed=s) for s in range(20)]
+    runs = [dataclasses.replace(c, layout=dataclasses.replace(c.layout, repeat_p=0.8)) for c in base]
+    assert sum(map(equal_pairs, runs)) > sum(map(equal_pairs, base)) + 10
+    for c in runs[:5]:
+        fams = {e.family for e in sample_layout(c).parts()}
+        assert {"drawer", "door", "flap", "sliding"} <= fams
+        assert layout_parts(sample_layout(c)).to_json() == layout_parts(sample_layout(c)).to_json()
+    same = dataclasses.replace(base[3], layout=dataclasses.replace(base[3].layout, repeat_p=0.0))
+    assert layout_parts(sample_layout(same)).to_json() == layout_parts(sample_layout(base[3])).to_json()
+    with pytest.raises(ConfigError, match="repeat_p = 1.5"):
+        dataclasses.replace(base[0].layout, repeat_p=1.5)
