@@ -266,6 +266,10 @@ class TypesConfig:
     this far or more off its frame's grey on its rectified image (a window:
     :func:`~drawer_lib.articulation.rectify.window_contrast`) no drawer (an oven, a microwave, a
     glass door; a drawer front is opaque); null turns this off.
+    ``glazed_low`` (m; read only with ``window_contrast``): such a glazed front whose centre lies
+    below this height above the floor is an oven door, hinged at its bottom (every other
+    hypothesis excluded); one above it is a hinged door, never a fixed panel (a microwave's or a
+    glass cabinet's door; the hinge side from the handle as for any door); null turns this off.
     ``drawer_max_height`` (m): where the score rule's ``tall`` feature starts (a front taller
     than the deepest drawers, which stop near 0.4 m in real kitchens, is a door or a flap).
     ``front_labels``: the labels, besides ``door_labels`` and ``drawer_labels``, a detector
@@ -283,6 +287,7 @@ class TypesConfig:
     sliding_needs_track: bool = True
     hinged_min_height: float | None = 0.2
     window_contrast: float | None = None
+    glazed_low: float | None = None
     drawer_max_height: float = 0.45
     edge_frac: float = 0.3
     use_labels: bool = True
@@ -304,6 +309,8 @@ class TypesConfig:
         if self.window_contrast is not None and not 0 < self.window_contrast < 1:
             raise ConfigError(f"articulate.types.window_contrast = {self.window_contrast} must be in (0, 1) "
                               "(a grey level) or null")
+        if self.glazed_low is not None and not 0 <= self.glazed_low < 10:
+            raise ConfigError(f"articulate.types.glazed_low = {self.glazed_low} must be in [0, 10) m or null")
         if not 0 < self.edge_frac < 0.5:
             raise ConfigError(f"articulate.types.edge_frac = {self.edge_frac} must be in (0, 0.5)")
         if self.min_support < 0:

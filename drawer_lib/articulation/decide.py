@@ -52,14 +52,17 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
     """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
     for ``decisions.json`` (features, door features per hinge side, scores, the runner-up, the
     margin and the confidence over the hypotheses its evidence allows: :func:`margin_confidence`,
-    :func:`missing_evidence`; ``excluded``: the others and why). ``blocked``: hypotheses the
+    :func:`missing_evidence`, :func:`glazed`; ``excluded``: the others and why). ``blocked``: hypotheses the
     interaction test rules out ({hypothesis: why};
-    :func:`~drawer_lib.articulation.interaction.blocked_hypotheses`); ``fixed`` always stays."""
+    :func:`~drawer_lib.articulation.interaction.blocked_hypotheses`); ``fixed`` stays whenever
+    everything else is excluded."""
     common = features(ev, cfg.drawer_labels, cfg.door_labels, cfg.use_labels, cfg.drawer_max_height)
     door = {side: door_features(ev, side) for side in ("left", "right")}
     all_scores = score(common, door, weights)
-    unseen = (missing_evidence(common, cfg) | glazed(ev, cfg)
+    unseen = (missing_evidence(common, cfg) | glazed(ev, cfg, common["z_mid"])
               | {k: v for k, v in (blocked or {}).items() if k != "fixed"})
+    if len(unseen) >= len(all_scores):  # nothing left: a glazed front that cannot swing is a fixed panel
+        unseen.pop("fixed", None)
     scores = {k: v for k, v in all_scores.items() if k not in unseen}
     best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
     runner_up, margin, conf = margin_confidence(scores, best)
@@ -93,14 +96,26 @@ def missing_evidence(common: dict[str, float], cfg: TypesConfig) -> dict[str, st
     return out
 
 
-def glazed(ev: Evidence, cfg: TypesConfig) -> dict[str, str]:
-    """``{"drawer": why}`` when the front's window contrast (``ev.window``,
-    :func:`~drawer_lib.articulation.rectify.window_contrast`) reaches ``cfg.window_contrast``: a
-    glazed front (an oven's or a microwave's door, a glass door) is hinged, never a drawer; else {}."""
+def glazed(ev: Evidence, cfg: TypesConfig, z_mid: float | None = None) -> dict[str, str]:
+    """The hypotheses a glazed front is not, with why: ``{"drawer": why}`` when its window
+    contrast (``ev.window``, :func:`~drawer_lib.articulation.rectify.window_contrast`) reaches
+    ``cfg.window_contrast`` (an oven's or a microwave's door, a glass door is hinged, never a
+    drawer); with ``cfg.glazed_low`` and the front's centre height ``z_mid`` (m above the floor)
+    as well, every hypothesis but ``flap_bottom`` below it (an oven door) and ``fixed`` as well
+    above it (a microwave's or a glass cabinet's door moves); else {}."""
     if cfg.window_contrast is None or ev.window is None or ev.window < cfg.window_contrast:
         return {}
-    return {"drawer": f"a window: its panel stands {ev.window:.2f} off its frame's grey (>= window_contrast "
-                      f"{cfg.window_contrast}): a glazed door, not a drawer"}
+    out = {"drawer": f"a window: its panel stands {ev.window:.2f} off its frame's grey (>= window_contrast "
+                     f"{cfg.window_contrast}): a glazed door, not a drawer"}
+    if cfg.glazed_low is None or z_mid is None:
+        return out
+    if z_mid < cfg.glazed_low:
+        why = f"a window with its centre {z_mid:.2f} m up (< glazed_low {cfg.glazed_low} m): an oven door, hinged at its bottom"
+        out.update({k: why for k in HYPOTHESES if k not in ("flap_bottom", "drawer")})
+    else:
+        out["fixed"] = (f"a window with its centre {z_mid:.2f} m up (>= glazed_low {cfg.glazed_low} m): "
+                        "a microwave's or a glass cabinet's door, which moves")
+    return out
 
 
 def margin_confidence(scores: dict[str, float], best: str) -> tuple[str, float, float]:

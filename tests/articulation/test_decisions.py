@@ -278,3 +278,36 @@ def test_a_glazed_front_is_no_drawer(window, threshold, excluded):
         assert dec.family == "drawer"
     with pytest.raises(ConfigError, match="window_contrast"):
         TypesConfig(window_contrast=1.5)
+
+
+@pytest.mark.parametrize("z_mid, handle, expected", [
+    (0.45, None, ("flap", "bottom")),                                       # a bare oven door under the counter
+    (0.45, Handle(0.5, 0.92, "horizontal", 60, "images"), ("flap", "bottom")),
+    (0.45, Handle(0.05, 0.5, "vertical", 60, "images"), ("flap", "bottom")),  # even with a pull at a side
+    (1.05, None, ("door", "left")),                                          # a bare microwave: a door, the tie's side
+    (1.05, Handle(0.95, 0.5, "vertical", 60, "images"), ("door", "left")),    # pull on the right: hinged left
+    (1.9, Handle(0.05, 0.5, "vertical", 60, "images"), ("door", "right")),    # a glass wall door
+])
+def test_a_glazed_front_low_is_an_oven_door_and_high_a_door(z_mid, handle, expected):
+    """``types.glazed_low`` (with ``window_contrast``): a glazed front centred below it has only
+    the bottom-hinged flap left; above it it is a hinged door, never a fixed panel (the hinge side
+    from the pull); an opaque front and ``glazed_low: null`` keep the old decision."""
+    types = dataclasses.replace(CFG.types, window_contrast=0.15, glazed_low=0.75)
+    ev = Evidence(handle=handle, size=(0.6, 0.45) if z_mid < 1 else (0.4, 0.7), z_mid=z_mid, stacked=int(z_mid < 1),
+                  beside_left=True, beside_right=True, partner=False, rail=0.0, carcass=0.5, labels={}, support=30,
+                  window=0.35)
+    dec, rec = decide_by_score(ev, types, PRIOR)
+    assert (dec.family, dec.hinge) == expected
+    assert "fixed" in rec["excluded"] and "glazed_low" in rec["excluded"]["fixed"]
+    opaque = dataclasses.replace(ev, window=0.02)
+    assert not {"fixed", "drawer"} & set(decide_by_score(opaque, types, PRIOR)[1]["excluded"])
+    off = dataclasses.replace(types, glazed_low=None)
+    assert set(decide_by_score(ev, off, PRIOR)[1]["excluded"]) - {"sliding"} == {"drawer"}
+    if handle is None and z_mid < 1:  # a bare oven door over its drawer, glazed_low off: the old decision, fixed
+        assert decide_by_score(ev, off, PRIOR)[0].family == "fixed"
+    # a low glazed front that the interaction test keeps from swinging down: nothing left but fixed
+    dec, rec = decide_by_score(dataclasses.replace(ev, z_mid=0.45), types, PRIOR,
+                               blocked={"flap_bottom": "no room to swing"})
+    assert dec.family == "fixed" and "fixed" not in rec["excluded"]
+    with pytest.raises(ConfigError, match="glazed_low"):
+        TypesConfig(glazed_low=-1.0)
