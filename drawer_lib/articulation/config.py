@@ -286,8 +286,8 @@ class TypesConfig:
     low_margin: float = 1.0
     sliding_needs_track: bool = True
     hinged_min_height: float | None = 0.2
-    window_contrast: float | None = None
-    glazed_low: float | None = None
+    window_contrast: float | None = 0.15
+    glazed_low: float | None = 0.75
     drawer_max_height: float = 0.45
     edge_frac: float = 0.3
     use_labels: bool = True
