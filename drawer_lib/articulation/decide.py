@@ -52,7 +52,8 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
     """The hypothesis of highest score (:mod:`drawer_lib.articulation.scoring`) and the terms
     for ``decisions.json`` (features, door features per hinge side, scores, the runner-up, the
     margin and the confidence over the hypotheses its evidence allows: :func:`margin_confidence`,
-    :func:`missing_evidence`, :func:`glazed`; ``excluded``: the others and why). ``blocked``: hypotheses the
+    :func:`missing_evidence`, :func:`glazed`; ``excluded``: the others and why; ``glazed_near``:
+    :func:`glazed_near`). ``blocked``: hypotheses the
     interaction test rules out ({hypothesis: why};
     :func:`~drawer_lib.articulation.interaction.blocked_hypotheses`); ``fixed`` stays whenever
     everything else is excluded."""
@@ -78,7 +79,7 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
     r4 = lambda d: {k: round(float(v), 4) for k, v in d.items()}  # noqa: E731
     return dec, {"features": r4(common), "door_features": {k: r4(v) for k, v in door.items()},
                  "scores": r4(all_scores), "excluded": unseen, "runner_up": runner_up, "margin": margin_json,
-                 "confidence": round(conf, 4)}
+                 "confidence": round(conf, 4), "glazed_near": glazed_near(ev, cfg, common["z_mid"])}
 
 
 def missing_evidence(common: dict[str, float], cfg: TypesConfig) -> dict[str, str]:
@@ -94,6 +95,23 @@ def missing_evidence(common: dict[str, float], cfg: TypesConfig) -> dict[str, st
         why = f"{common['height']:.2f} m tall < hinged_min_height {cfg.hinged_min_height} m: no room for hinges"
         out.update(dict.fromkeys(("door_left", "door_right", "flap_top"), why))
     return out
+
+
+WINDOW_BAND = 0.03  # grey level: a window contrast this close to window_contrast is a decision near its threshold
+GLAZED_BAND = 0.05  # m: a glazed front's centre this close to glazed_low is one too
+
+
+def glazed_near(ev: Evidence, cfg: TypesConfig, z_mid: float) -> bool:
+    """Whether the glazed rules' outcome for this front rests on a value within its band of a
+    threshold (:data:`WINDOW_BAND` of ``cfg.window_contrast``; for a glazed front, :data:`GLAZED_BAND`
+    of ``cfg.glazed_low``): another machine's last bits could flip it, so the decision is marked
+    ``low_margin``. False with the rules off or no image."""
+    if cfg.window_contrast is None or ev.window is None:
+        return False
+    if abs(ev.window - cfg.window_contrast) < WINDOW_BAND:
+        return True
+    return (ev.window >= cfg.window_contrast and cfg.glazed_low is not None
+            and abs(z_mid - cfg.glazed_low) < GLAZED_BAND)
 
 
 def glazed(ev: Evidence, cfg: TypesConfig, z_mid: float | None = None) -> dict[str, str]:

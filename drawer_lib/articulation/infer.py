@@ -264,7 +264,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         else:
             dec = decide_by_handle(h, s.labels, cfg.types)
         reason = dec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
-        low = dec.margin is not None and dec.margin < cfg.types.low_margin
+        low = (dec.margin is not None and dec.margin < cfg.types.low_margin) or bool(terms.get("glazed_near"))
         row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason, "low_margin": low,
                "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size],
                "front": fr.to_json(), **info, **terms}

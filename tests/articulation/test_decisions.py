@@ -311,3 +311,23 @@ def test_a_glazed_front_low_is_an_oven_door_and_high_a_door(z_mid, handle, expec
     assert dec.family == "fixed" and "fixed" not in rec["excluded"]
     with pytest.raises(ConfigError, match="glazed_low"):
         TypesConfig(glazed_low=-1.0)
+
+
+def test_a_glazed_decision_near_its_thresholds_is_marked():
+    """``glazed_near``: a window contrast within WINDOW_BAND of ``window_contrast`` (either side),
+    or a glazed front's centre within GLAZED_BAND of ``glazed_low``, is a decision another
+    machine's last bits could flip; clear of both, or with the rules off, it is not."""
+    from drawer_lib.articulation.decide import GLAZED_BAND, WINDOW_BAND, glazed_near
+
+    types = dataclasses.replace(CFG.types, window_contrast=0.15, glazed_low=0.75)
+    ev = Evidence(handle=None, size=(0.6, 0.45), z_mid=0.45, stacked=1, beside_left=True, beside_right=True,
+                  partner=False, rail=0.0, carcass=0.5, labels={}, support=30, window=0.35)
+    at = lambda **kw: glazed_near(dataclasses.replace(ev, **{k: v for k, v in kw.items() if k != "z"}), types,  # noqa: E731
+                                  kw.get("z", 0.45))
+    assert not at() and not at(window=0.02) and not at(window=None)
+    assert at(window=0.15 + WINDOW_BAND / 2) and at(window=0.15 - WINDOW_BAND / 2)
+    assert at(z=0.75 - GLAZED_BAND / 2) and at(z=0.75 + GLAZED_BAND / 2)
+    assert not at(window=0.02, z=0.75)  # an opaque front's height decides nothing
+    assert not glazed_near(ev, dataclasses.replace(types, window_contrast=None), 0.75)
+    assert decide_by_score(ev, types, PRIOR)[1]["glazed_near"] is False
+    assert decide_by_score(dataclasses.replace(ev, window=0.16), types, PRIOR)[1]["glazed_near"] is True
