@@ -62,7 +62,7 @@ def decide_by_score(ev: Evidence, cfg: TypesConfig, weights: dict[str, dict[str,
     all_scores = score(common, door, weights)
     unseen = (missing_evidence(common, cfg) | glazed(ev, cfg, common["z_mid"])
               | {k: v for k, v in (blocked or {}).items() if k != "fixed"})
-    if len(unseen) >= len(all_scores):  # nothing left: a glazed front that cannot swing is a fixed panel
+    if set(all_scores) <= set(unseen):  # nothing left: a glazed front that cannot swing is a fixed panel
         unseen.pop("fixed", None)
     scores = {k: v for k, v in all_scores.items() if k not in unseen}
     best = max(scores, key=lambda k: (scores[k], -HYPOTHESES.index(k)))
@@ -114,7 +114,7 @@ def glazed_near(ev: Evidence, cfg: TypesConfig, z_mid: float) -> bool:
             and abs(z_mid - cfg.glazed_low) < GLAZED_BAND)
 
 
-def glazed(ev: Evidence, cfg: TypesConfig, z_mid: float | None = None) -> dict[str, str]:
+def glazed(ev: Evidence, cfg: TypesConfig, z_mid: float) -> dict[str, str]:
     """The hypotheses a glazed front is not, with why: ``{"drawer": why}`` when its window
     contrast (``ev.window``, :func:`~drawer_lib.articulation.rectify.window_contrast`) reaches
     ``cfg.window_contrast`` (an oven's or a microwave's door, a glass door is hinged, never a
@@ -125,7 +125,7 @@ def glazed(ev: Evidence, cfg: TypesConfig, z_mid: float | None = None) -> dict[s
         return {}
     out = {"drawer": f"a window: its panel stands {ev.window:.2f} off its frame's grey (>= window_contrast "
                      f"{cfg.window_contrast}): a glazed door, not a drawer"}
-    if cfg.glazed_low is None or z_mid is None:
+    if cfg.glazed_low is None:
         return out
     if z_mid < cfg.glazed_low:
         why = f"a window with its centre {z_mid:.2f} m up (< glazed_low {cfg.glazed_low} m): an oven door, hinged at its bottom"

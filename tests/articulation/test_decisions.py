@@ -266,7 +266,7 @@ def test_a_glazed_front_is_no_drawer(window, threshold, excluded):
     """``types.window_contrast``: an oven door with its bar along the top and no label (a drawer
     on the prior weights) is excluded from the drawers once its window stands the threshold off
     its frame, and then typed the bottom-hinged flap it is; no image (None) or null: off."""
-    types = dataclasses.replace(CFG.types, window_contrast=threshold)
+    types = dataclasses.replace(CFG.types, window_contrast=threshold, glazed_low=None)  # the window alone
     ev = Evidence(handle=Handle(0.5, 0.92, "horizontal", 60, "images"), size=(0.6, 0.45), z_mid=0.55, stacked=1,
                   beside_left=True, beside_right=True, partner=False, rail=0.0, carcass=0.5, labels={}, support=30,
                   window=window)
@@ -322,8 +322,10 @@ def test_a_glazed_decision_near_its_thresholds_is_marked():
     types = dataclasses.replace(CFG.types, window_contrast=0.15, glazed_low=0.75)
     ev = Evidence(handle=None, size=(0.6, 0.45), z_mid=0.45, stacked=1, beside_left=True, beside_right=True,
                   partner=False, rail=0.0, carcass=0.5, labels={}, support=30, window=0.35)
-    at = lambda **kw: glazed_near(dataclasses.replace(ev, **{k: v for k, v in kw.items() if k != "z"}), types,  # noqa: E731
-                                  kw.get("z", 0.45))
+
+    def at(z: float = 0.45, **kw) -> bool:
+        return glazed_near(dataclasses.replace(ev, **kw), types, z)
+
     assert not at() and not at(window=0.02) and not at(window=None)
     assert at(window=0.15 + WINDOW_BAND / 2) and at(window=0.15 - WINDOW_BAND / 2)
     assert at(z=0.75 - GLAZED_BAND / 2) and at(z=0.75 + GLAZED_BAND / 2)
