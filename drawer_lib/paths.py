@@ -83,6 +83,7 @@ BENCH = {
     "detector_score": "detector_score",  # the detector scored as the pipeline decodes it (detect.builtin)
     "detector_fits": "detector_fits",  # one folder per fit: <seed>/ with weights.pt, curve.csv, metrics.json
     "detector_fit_weights": "weights.pt",  # in detector_fits/<seed>/
+    "detector_fit_resume": "detector_fit_resume",  # <seed>.pt: an unfinished fit's last state (no DVC output)
 }
 
 CAPTURE_DIRS = ("images", "depth", "mono_depth", "mono_normal", "detections", "gt", "sparse")
@@ -204,6 +205,12 @@ class BenchPaths:
         """One fit of the built-in detector: ``detector_fits/<seed>/`` (its ``weights.pt``,
         ``curve.csv``, ``metrics.json``); the ``detector`` stage averages the listed seeds' fits."""
         return Path(self.root) / BENCH["detector_fits"] / str(int(seed))
+
+    def detector_fit_resume(self, seed: int) -> Path:
+        """An unfinished fit's last state, ``detector_fit_resume/<seed>.pt``: the
+        ``detector_fit@<seed>`` stage goes on from it and removes it when the fit is done. Outside
+        the stage's output, which a rerun replaces, and outside every stage's dependencies."""
+        return Path(self.root) / BENCH["detector_fit_resume"] / f"{int(seed)}.pt"
 
     def eval(self, split: str) -> Path:
         """The evaluation of ``split``: ``eval/<split>/`` (its table, ``metrics.json``, rows and

@@ -8,6 +8,10 @@ them the one detector later stages read.
     python -m stages.detector_fit -cn dvc_stage scene=kitchen_small seed=0        # as DVC runs it
     python -m stages.detector_fit scene=kitchen_small seed=1 paths.bench=DIR      # a fit from another seed, elsewhere
     python -m stages.detector_fit scene=kitchen_small detector.steps=300          # a short fit
+
+An interrupted fit (Ctrl-C, SIGTERM, a cluster's time limit) keeps its state every
+``detector.checkpoint_every`` steps in ``<paths.bench>/detector_fit_resume/<seed>.pt``; the same
+command (or ``dvc repro``) goes on from there to the weights an uninterrupted fit makes.
 """
 
 import hydra
@@ -24,7 +28,7 @@ def main(cfg: DictConfig) -> None:
     tc, base, render = stage_inputs(cfg)
     dst = bench_paths(cfg)[1]
     with stage_run("detector_fit", dst.detector_fit(cfg.seed), seed=cfg.seed) as run:
-        run.metrics.update(run_fit_detector(tc, base, render, cfg.seed, run))
+        run.metrics.update(run_fit_detector(tc, base, render, cfg.seed, run, dst.detector_fit_resume(cfg.seed)))
 
 
 if __name__ == "__main__":

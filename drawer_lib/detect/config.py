@@ -127,11 +127,15 @@ class DetectorTrainConfig:
     ``average_layout``: keys of a layout block merged over each fit kitchen's (after ``layout``)
     for a second rendering of it that only the averaging trains on, beside the first: the
     averaging draws its crops from both (domain randomisation after the fit, which stays as it
-    is; empty: none, the averaging sees what the fit saw)."""
+    is; empty: none, the averaging sees what the fit saw). ``checkpoint_every`` > 0: a fit keeps
+    its state (weights, optimiser, schedule, random streams, curve) every that many steps and
+    when it is interrupted, and a rerun with the same settings and views goes on from there to
+    the same weights as an uninterrupted fit (:func:`drawer_lib.detect.train.fit_detector`; a
+    job past its time limit on a cluster loses at most that many steps); 0: never."""
 
     # keys only the ``detector`` stage reads, never a fit: changing them must not refit
     NOT_FIT_KEYS: ClassVar[frozenset[str]] = frozenset({"seeds", "average_steps", "average_lr", "average_warmup",
-                                                     "average_layout"})
+                                                     "average_layout", "checkpoint_every"})
 
     kitchens: list[int] = field(default_factory=lambda: list(range(16)) + list(range(32, 80)))
     eval_kitchens: list[int] = field(default_factory=lambda: list(range(6)))
@@ -153,6 +157,7 @@ class DetectorTrainConfig:
     average_lr: float = 1e-3
     average_warmup: int = 100
     average_layout: dict[str, Any] = field(default_factory=dict)
+    checkpoint_every: int = 250
 
     def __post_init__(self):
         if not self.kitchens:
@@ -170,6 +175,8 @@ class DetectorTrainConfig:
         if self.average_layout and not self.average_steps:
             raise ConfigError(f"detector.average_layout = {dict(self.average_layout)} needs detector.average_steps > 0 "
                               "(only the averaging trains on it)")
+        if self.checkpoint_every < 0:
+            raise ConfigError(f"detector.checkpoint_every = {self.checkpoint_every}: must be >= 0 (0: never)")
         if not self.average_lr > 0:
             raise ConfigError(f"detector.average_lr = {self.average_lr}: must be > 0")
         if self.crop > self.working_size:

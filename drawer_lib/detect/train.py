@@ -4,8 +4,12 @@ and recall of its fronts on the test split's kitchens, which it never saw; and t
 ``detector.seeds`` as the one detector later stages read (the ``detector`` stage)."""
 
 import copy
+import dataclasses
+import hashlib
 import json
+import os
 import shutil
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -111,10 +115,53 @@ def _train_step(model: TinyUNet, opt: torch.optim.Optimizer, samples: list[Sampl
     return loss.item()
 
 
+def fit_fingerprint(samples: list[Sample], cfg: DetectorTrainConfig, seed: int) -> str:
+    """What a fit's saved state must agree with to be gone on from: the fit's settings (every
+    ``detector`` key a fit reads), ``seed``, the torch version, and the number and the sums of
+    the training views' inputs and classes (sha256, hex)."""
+    keys = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name not in cfg.NOT_FIT_KEYS}
+    x = sum(float(s.x.double().sum()) for s in samples)
+    y = sum(int(s.y.sum()) for s in samples)
+    blob = json.dumps({"cfg": keys, "seed": seed, "torch": torch.__version__, "views": len(samples),
+                       "x": f"{x:.9e}", "y": y}, sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _save_state(path: Path, state: dict) -> None:
+    """``state`` to ``path`` through a temporary sibling (a kill mid-write leaves the last whole one)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(state, tmp)
+    os.replace(tmp, path)
+
+
+def _load_state(path: Path, fingerprint: str) -> dict | None:
+    """The saved state at ``path`` when it belongs to this fit (its fingerprint), else ``None``
+    (a stale or unreadable one is reported and ignored: the fit starts afresh)."""
+    if not path.is_file():
+        return None
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:  # noqa: BLE001  (a truncated or foreign file: start afresh, say so)
+        print(f"[detector] {path}: unreadable saved state ({e.__class__.__name__}), fitting from step 0", file=sys.stderr)
+        return None
+    if not isinstance(state, dict) or state.get("fingerprint") != fingerprint:
+        print(f"[detector] {path}: saved by a fit with other settings or views, fitting from step 0", file=sys.stderr)
+        return None
+    return state
+
+
 def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, curve: Curve | None = None,
-                 progress: Callable = lambda it, **kw: it) -> tuple[TinyUNet, list[float]]:
+                 progress: Callable = lambda it, **kw: it, resume: Path | None = None) -> tuple[TinyUNet, list[float]]:
     """Train a :class:`TinyUNet` on ``samples``; returns it (in eval mode) and the loss of every
-    ``log_every``-th step (logged to ``curve``)."""
+    ``log_every``-th step (logged to ``curve``).
+
+    ``resume``: where the fit keeps its state (model, Adam, the one-cycle schedule, the crop
+    generator's and torch's random state, the losses logged so far with their times) every
+    ``cfg.checkpoint_every`` steps and when interrupted (Ctrl-C, SIGTERM): a later call with the
+    same settings, seed and views (:func:`fit_fingerprint`) goes on from the saved step to the
+    same weights, bit for bit on the same machine and threads, as a fit never stopped; its
+    ``curve`` gets the earlier rows again first. The file is removed once the fit is done."""
     if not samples:
         raise InputError("detector: no training views (detector.kitchens rendered nothing)")
     torch.manual_seed(seed)
@@ -123,15 +170,53 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=cfg.steps, pct_start=0.1)
     weight = class_weights(samples)
-    losses = []
+    losses: list[float] = []
+    rows: list[tuple[int, float, float]] = []  # (step, wall_s, loss) as logged
+    fingerprint = fit_fingerprint(samples, cfg, seed) if resume is not None else ""
+    state = _load_state(resume, fingerprint) if resume is not None else None
+    start, wall0 = 1, 0.0
+    if state is not None:
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["opt"])
+        sched.load_state_dict(state["sched"])
+        g.set_state(state["generator"])
+        torch.set_rng_state(state["torch_rng"])
+        rows = [tuple(r) for r in state["rows"]]
+        losses = [r[2] for r in rows]
+        start, wall0 = state["step"] + 1, state["wall_s"]
+        print(f"[detector] going on from step {state['step']} of {cfg.steps} ({resume})", file=sys.stderr)
+        if curve is not None:
+            for step, wall_s, loss in rows:
+                curve.log(step, wall_s=wall_s, loss=loss)
+    t0 = time.perf_counter()
+
+    def save(step: int) -> None:
+        _save_state(resume, {"fingerprint": fingerprint, "step": step, "wall_s": wall0 + time.perf_counter() - t0,
+                             "model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
+                             "generator": g.get_state(), "torch_rng": torch.get_rng_state(), "rows": rows})
+
     model.train()
-    for step in progress(range(1, cfg.steps + 1), desc="train", total=cfg.steps):
-        loss = _train_step(model, opt, samples, cfg, g, weight, step)
-        sched.step()
-        if step % cfg.log_every == 0 or step == cfg.steps:
-            losses.append(loss)
-            if curve is not None:
-                curve.log(step, loss=loss)
+    done = start - 1
+    try:
+        for step in progress(range(start, cfg.steps + 1), desc="train", total=cfg.steps, initial=start - 1):
+            loss = _train_step(model, opt, samples, cfg, g, weight, step)
+            sched.step()
+            done = step
+            if step % cfg.log_every == 0 or step == cfg.steps:
+                losses.append(loss)
+                rows.append((step, wall0 + time.perf_counter() - t0, loss))
+                if curve is not None:
+                    curve.log(step, wall_s=rows[-1][1], loss=loss)
+            if resume is not None and cfg.checkpoint_every and step % cfg.checkpoint_every == 0 and step < cfg.steps:
+                save(step)
+    except KeyboardInterrupt:
+        if resume is not None and cfg.checkpoint_every and done >= start:
+            save(done)
+            print(f"[detector] interrupted: step {done} of {cfg.steps} kept in {resume}; rerun to go on",
+                  file=sys.stderr)
+        raise
+    if resume is not None:
+        resume.unlink(missing_ok=True)
     return model.eval(), losses
 
 
@@ -241,11 +326,12 @@ def fit_info(cfg: DetectorTrainConfig) -> dict:
 
 
 def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, seed: int,
-                     run: StageRun) -> dict:
+                     run: StageRun, resume: Path | None = None) -> dict:
     """One fit of the built-in detector (the ``detector_fit@<seed>`` stage): render the train
     split's kitchens ``cfg.kitchens``, fit from ``seed``, write ``weights.pt`` and ``curve.csv``
-    (loss against time), and score it on the train views and on the test split's kitchens
-    ``cfg.eval_kitchens``, which it never saw."""
+    (loss against training time), and score it on the train views and on the test split's kitchens
+    ``cfg.eval_kitchens``, which it never saw. ``resume``: where an interrupted fit keeps its
+    state and a rerun goes on from it (:func:`fit_detector`)."""
     check_layouts(cfg)
     t0 = time.perf_counter()
     train_views = _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
@@ -253,7 +339,7 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     render_s = time.perf_counter() - t0
     samples = [to_sample(v, cfg.working_size) for v in train_views]
     t1 = time.perf_counter()
-    model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress)
+    model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress, resume)
     train_s = time.perf_counter() - t1
     dc = fit_decoding(cfg)
     save_detector(run.dir / BENCH["detector_fit_weights"], model, fit_info(cfg))

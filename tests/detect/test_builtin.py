@@ -3,6 +3,7 @@ the network's shapes, its weights file, its fit on a tiny analytic dataset, the 
 and the detector and detect stages end to end (a few steps on one train kitchen)."""
 
 import copy
+import dataclasses
 import json
 import shutil
 
@@ -285,6 +286,64 @@ def test_fit_learns_rectangles_on_a_flat_background():
     assert len(losses) == 3 and losses[-1] < losses[0]
     base = max(float((s.y == FRONT).float().mean()) for s in samples)
     assert pixel_accuracy(model, samples) > max(0.9, base)
+
+
+def _stop_after(n: int):
+    """A ``progress`` wrapper that is interrupted (as by Ctrl-C or SIGTERM) before its
+    ``n + 1``-th item."""
+    def progress(it, **kw):
+        for i, x in enumerate(it):
+            if i == n:
+                raise KeyboardInterrupt("test")
+            yield x
+    return progress
+
+
+def test_an_interrupted_fit_goes_on_to_the_weights_of_an_uninterrupted_one(tmp_path):
+    """Stopped mid-fit (between two saves: what it did since the last one is kept at the
+    interrupt) and rerun, then stopped at a save with no step after it and rerun: the weights
+    and the logged losses equal those of a fit never stopped, bit for bit; the curve gets every
+    row once, in order; the saved state is gone once the fit is done."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=12, batch=4, crop=32, lr=1e-2, log_every=2, checkpoint_every=4)
+    ref, ref_losses = fit_detector(samples, cfg, seed=0)
+    state = tmp_path / "resume" / "0.pt"
+    for stop in (7, 8):  # at step 7 (saved at 4, and at 7 by the interrupt), at step 8 (a save)
+        with pytest.raises(KeyboardInterrupt):
+            fit_detector(samples, cfg, seed=0, progress=_stop_after(stop), resume=state)
+        assert torch.load(state, weights_only=False)["step"] == stop
+        run = StageRun("t", tmp_path / f"o{stop}", tmp_path / f"d{stop}", 0)
+        (tmp_path / f"d{stop}").mkdir()
+        model, losses = fit_detector(samples, cfg, seed=0, curve=run.curve(["loss"]), resume=state)
+        run._finish()
+        assert losses == ref_losses
+        for k, v in ref.state_dict().items():
+            assert torch.equal(model.state_dict()[k], v), k
+        assert not state.exists()
+        steps = [int(r.split(",")[0]) for r in (tmp_path / f"d{stop}" / "curve.csv").read_text().split()[1:]]
+        assert steps == [2, 4, 6, 8, 10, 12]
+
+
+def test_a_saved_state_of_another_fit_is_not_gone_on_from(tmp_path, capsys):
+    """A state saved by a fit with another seed, other settings or other views, or a truncated
+    file, is reported and ignored: the fit starts at step 0 and makes a fresh fit's weights."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=8, batch=4, crop=32, lr=1e-2, log_every=2, checkpoint_every=2)
+    ref, _ = fit_detector(samples, cfg, seed=0)
+    state = tmp_path / "0.pt"
+    others = ((cfg, 1, samples), (dataclasses.replace(cfg, lr=5e-3), 0, samples), (cfg, 0, _rectangles(seed=1)))
+    for c, seed, views in others:
+        with pytest.raises(KeyboardInterrupt):
+            fit_detector(views, c, seed=seed, progress=_stop_after(5), resume=state)
+        model, _ = fit_detector(samples, cfg, seed=0, resume=state)
+        assert "other settings or views" in capsys.readouterr().err
+        assert all(torch.equal(model.state_dict()[k], v) for k, v in ref.state_dict().items())
+    state.write_bytes(b"not a state")
+    model, _ = fit_detector(samples, cfg, seed=0, resume=state)
+    assert "unreadable" in capsys.readouterr().err
+    assert all(torch.equal(model.state_dict()[k], v) for k, v in ref.state_dict().items())
+    with pytest.raises(ConfigError, match="checkpoint_every = -1"):
+        DetectorTrainConfig(checkpoint_every=-1)
 
 
 def test_weight_averaging_is_the_mean_of_the_weights_after_the_warm_up():
