@@ -340,6 +340,8 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     samples = [to_sample(v, cfg.working_size) for v in train_views]
     t1 = time.perf_counter()
     model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress, resume)
+    if resume is not None and resume.parent.is_dir() and not any(resume.parent.iterdir()):
+        resume.parent.rmdir()  # no other seed's fit is unfinished
     train_s = time.perf_counter() - t1
     dc = fit_decoding(cfg)
     save_detector(run.dir / BENCH["detector_fit_weights"], model, fit_info(cfg))

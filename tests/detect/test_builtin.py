@@ -438,8 +438,9 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
              "detector.average_steps=0"]
     fits = tmp_path / "bench" / "detector_fits"
     for seed in (0, 1):
-        r = run_stage("detector_fit", tmp_path, *short, f"seed={seed}")
+        r = run_stage("detector_fit", tmp_path, *short, f"seed={seed}", "detector.checkpoint_every=2")
         assert r.returncode == 0, r.stderr[-3000:]
+    assert not (tmp_path / "bench" / "detector_fit_resume").exists()  # kept at steps 2 and 4, gone when done
     m = json.loads((fits / "0" / "metrics.json").read_text())
     assert m["train_views"] == 3 and m["test_views"] == 3 and m["wall_s"] > 0
     assert {"fronts_2d_precision_test", "fronts_2d_recall_test", "pixel_accuracy_test"} <= set(m)
