@@ -267,6 +267,29 @@ def _restore(handlers: dict) -> None:
         signal.signal(sig, h)
 
 
+@contextmanager
+def deferred_interrupts() -> Iterator[list[int]]:
+    """Ctrl-C, SIGTERM and SIGHUP held back (main thread only): the first is recorded in the
+    list it yields, for the caller to stop at its next safe point (a training step's end); a
+    second one raises KeyboardInterrupt at once. Elsewhere than the main thread nothing is held
+    back and the list stays empty."""
+    pending: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield pending
+        return
+
+    def _hold(signum, frame):
+        if pending:
+            raise KeyboardInterrupt(f"signal {signum}")
+        pending.append(signum)
+
+    old = {sig: signal.signal(sig, _hold) for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield pending
+    finally:
+        _restore(old)
+
+
 def main_guard(fn: Callable) -> Callable:
     """Decorator for stage mains: InputError -> ``error: <message>`` on stderr and exit code 2."""
 

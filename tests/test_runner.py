@@ -1,12 +1,13 @@
 import json
 import math
 import os
+import signal
 
 import pytest
 
 from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.io.manifest import Manifest
-from drawer_lib.runner import main_guard, stage_run, thread_cap
+from drawer_lib.runner import deferred_interrupts, main_guard, stage_run, thread_cap
 
 
 def test_outputs_appear_atomically_with_metrics(tmp_path):
@@ -142,3 +143,15 @@ def test_peak_memory_is_the_stages_own_not_its_parents():
     code = "from drawer_lib.runner import peak_rss_mb; print(peak_rss_mb())"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert float(out) < 300 and big.sum() > 0
+
+
+def test_deferred_interrupts_hold_the_first_signal_and_yield_to_a_second():
+    """Inside, the first Ctrl-C / SIGTERM is only recorded; a second one raises at once; on the
+    way out the handlers are the ones before."""
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    with deferred_interrupts() as pending:
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert pending == [signal.SIGTERM]
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+    assert {s: signal.getsignal(s) for s in before} == before

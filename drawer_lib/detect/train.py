@@ -12,6 +12,7 @@ import shutil
 import sys
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +30,7 @@ from drawer_lib.detect.data import View, render_views
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.metrics.detections import match_fronts
 from drawer_lib.paths import BENCH, LAYOUT, bench_name
-from drawer_lib.runner import Curve, StageRun
+from drawer_lib.runner import Curve, StageRun, deferred_interrupts
 from drawer_lib.synth.config import LAYOUT_KEYS, RenderConfig
 
 
@@ -158,7 +159,8 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
 
     ``resume``: where the fit keeps its state (model, Adam, the one-cycle schedule, the crop
     generator's and torch's random state, the losses logged so far with their times) every
-    ``cfg.checkpoint_every`` steps and when interrupted (Ctrl-C, SIGTERM): a later call with the
+    ``cfg.checkpoint_every`` steps and when interrupted (Ctrl-C, SIGTERM, SIGHUP: held to the end
+    of the step in progress, :func:`~drawer_lib.runner.deferred_interrupts`): a later call with the
     same settings, seed and views (:func:`fit_fingerprint`) goes on from the saved step to the
     same weights, bit for bit on the same machine and threads, as a fit never stopped; its
     ``curve`` gets the earlier rows again first. The file is removed once the fit is done."""
@@ -196,21 +198,27 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
                              "generator": g.get_state(), "torch_rng": torch.get_rng_state(), "rows": rows})
 
     model.train()
-    done = start - 1
+    done, in_step = start - 1, False
     try:
-        for step in progress(range(start, cfg.steps + 1), desc="train", total=cfg.steps, initial=start - 1):
-            loss = _train_step(model, opt, samples, cfg, g, weight, step)
-            sched.step()
-            done = step
-            if step % cfg.log_every == 0 or step == cfg.steps:
-                losses.append(loss)
-                rows.append((step, wall0 + time.perf_counter() - t0, loss))
-                if curve is not None:
-                    curve.log(step, wall_s=rows[-1][1], loss=loss)
-            if resume is not None and cfg.checkpoint_every and step % cfg.checkpoint_every == 0 and step < cfg.steps:
-                save(step)
+        with deferred_interrupts() if resume is not None else nullcontext([]) as pending:
+            for step in progress(range(start, cfg.steps + 1), desc="train", total=cfg.steps, initial=start - 1):
+                in_step = True
+                loss = _train_step(model, opt, samples, cfg, g, weight, step)
+                sched.step()
+                done, in_step = step, False
+                if step % cfg.log_every == 0 or step == cfg.steps:
+                    losses.append(loss)
+                    rows.append((step, wall0 + time.perf_counter() - t0, loss))
+                    if curve is not None:
+                        curve.log(step, wall_s=rows[-1][1], loss=loss)
+                if pending:
+                    raise KeyboardInterrupt(f"signal {pending[0]}")
+                if resume is not None and cfg.checkpoint_every and step % cfg.checkpoint_every == 0 and step < cfg.steps:
+                    save(step)
     except KeyboardInterrupt:
-        if resume is not None and cfg.checkpoint_every and done >= start:
+        # between two steps (a signal held to the step's end, or the progress bar's iterator):
+        # this step's state; within one (a second signal): the last periodic save stands
+        if resume is not None and cfg.checkpoint_every and done >= start and not in_step:
             save(done)
             print(f"[detector] interrupted: step {done} of {cfg.steps} kept in {resume}; rerun to go on",
                   file=sys.stderr)

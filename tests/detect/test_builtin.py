@@ -5,7 +5,9 @@ and the detector and detect stages end to end (a few steps on one train kitchen)
 import copy
 import dataclasses
 import json
+import os
 import shutil
+import signal
 
 import numpy as np
 import pytest
@@ -322,6 +324,32 @@ def test_an_interrupted_fit_goes_on_to_the_weights_of_an_uninterrupted_one(tmp_p
         assert not state.exists()
         steps = [int(r.split(",")[0]) for r in (tmp_path / f"d{stop}" / "curve.csv").read_text().split()[1:]]
         assert steps == [2, 4, 6, 8, 10, 12]
+
+
+def test_a_signal_mid_fit_stops_it_at_the_end_of_that_step(tmp_path):
+    """SIGTERM (a cluster's time limit, a killed ``dvc repro``) sent while a step runs: the step
+    ends, its state is kept, the fit stops; the rerun makes the weights of a fit never stopped.
+    The same on the last step: the rerun has no step left and returns those weights."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=8, batch=4, crop=32, lr=1e-2, log_every=2, checkpoint_every=100)
+    ref, ref_losses = fit_detector(samples, cfg, seed=0)
+    state = tmp_path / "0.pt"
+
+    def term_at(n: int):
+        def progress(it, **kw):
+            for i, x in enumerate(it):
+                if i == n:
+                    os.kill(os.getpid(), signal.SIGTERM)
+                yield x
+        return progress
+
+    for n, kept in ((2, 3), (7, 8)):  # sent before step 3 runs (the handler runs in it), and before step 8
+        with pytest.raises(KeyboardInterrupt, match=f"signal {int(signal.SIGTERM)}"):
+            fit_detector(samples, cfg, seed=0, progress=term_at(n), resume=state)
+        assert torch.load(state, weights_only=False)["step"] == kept
+        model, losses = fit_detector(samples, cfg, seed=0, resume=state)
+        assert losses == ref_losses and not state.exists()
+        assert all(torch.equal(model.state_dict()[k], v) for k, v in ref.state_dict().items())
 
 
 def test_a_saved_state_of_another_fit_is_not_gone_on_from(tmp_path, capsys):
