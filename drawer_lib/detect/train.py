@@ -7,7 +7,6 @@ import copy
 import dataclasses
 import hashlib
 import json
-import os
 import shutil
 import sys
 import time
@@ -28,6 +27,7 @@ from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, Tiny
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
+from drawer_lib.io.atomic import atomic_open
 from drawer_lib.metrics.detections import match_fronts
 from drawer_lib.paths import BENCH, LAYOUT, bench_name
 from drawer_lib.runner import Curve, StageRun, deferred_interrupts
@@ -128,14 +128,6 @@ def fit_fingerprint(samples: list[Sample], cfg: DetectorTrainConfig, seed: int) 
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def _save_state(path: Path, state: dict) -> None:
-    """``state`` to ``path`` through a temporary sibling (a kill mid-write leaves the last whole one)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(state, tmp)
-    os.replace(tmp, path)
-
-
 def _load_state(path: Path, fingerprint: str) -> dict | None:
     """The saved state at ``path`` when it belongs to this fit (its fingerprint), else ``None``
     (a stale or unreadable one is reported and ignored: the fit starts afresh)."""
@@ -172,7 +164,6 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=cfg.steps, pct_start=0.1)
     weight = class_weights(samples)
-    losses: list[float] = []
     rows: list[tuple[int, float, float]] = []  # (step, wall_s, loss) as logged
     fingerprint = fit_fingerprint(samples, cfg, seed) if resume is not None else ""
     state = _load_state(resume, fingerprint) if resume is not None else None
@@ -184,7 +175,6 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
         g.set_state(state["generator"])
         torch.set_rng_state(state["torch_rng"])
         rows = [tuple(r) for r in state["rows"]]
-        losses = [r[2] for r in rows]
         start, wall0 = state["step"] + 1, state["wall_s"]
         print(f"[detector] going on from step {state['step']} of {cfg.steps} ({resume})", file=sys.stderr)
         if curve is not None:
@@ -193,9 +183,10 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     t0 = time.perf_counter()
 
     def save(step: int) -> None:
-        _save_state(resume, {"fingerprint": fingerprint, "step": step, "wall_s": wall0 + time.perf_counter() - t0,
-                             "model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
-                             "generator": g.get_state(), "torch_rng": torch.get_rng_state(), "rows": rows})
+        with atomic_open(resume) as f:  # a kill mid-write leaves the last whole state
+            torch.save({"fingerprint": fingerprint, "step": step, "wall_s": wall0 + time.perf_counter() - t0,
+                        "model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
+                        "generator": g.get_state(), "torch_rng": torch.get_rng_state(), "rows": rows}, f)
 
     model.train()
     done, in_step = start - 1, False
@@ -207,7 +198,6 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
                 sched.step()
                 done, in_step = step, False
                 if step % cfg.log_every == 0 or step == cfg.steps:
-                    losses.append(loss)
                     rows.append((step, wall0 + time.perf_counter() - t0, loss))
                     if curve is not None:
                         curve.log(step, wall_s=rows[-1][1], loss=loss)
@@ -225,7 +215,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
         raise
     if resume is not None:
         resume.unlink(missing_ok=True)
-    return model.eval(), losses
+    return model.eval(), [r[2] for r in rows]
 
 
 def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int,
