@@ -23,6 +23,7 @@ from tqdm import tqdm
 from drawer_lib.articulation.config import ArticulateConfig, VlmConfig
 from drawer_lib.articulation.infer import infer_parts
 from drawer_lib.articulation.rectify import View
+from drawer_lib.devices import torch_device
 from drawer_lib.errors import InputError, NonFiniteError
 from drawer_lib.hub import model_dir
 from drawer_lib.io.parts import Part
@@ -104,7 +105,7 @@ class VlmTyper:
 
         self.cfg = cfg
         d = model_dir(cfg.model, cfg.allow_download, "articulate.vlm.model")
-        self.device = torch.device(cfg.device)
+        self.device = torch_device(cfg.device, "articulate.vlm.device")
         self.proc = AutoProcessor.from_pretrained(d, local_files_only=True)
         self.model = AutoModelForImageTextToText.from_pretrained(d, local_files_only=True).eval().to(self.device)
         if getattr(self.proc, "chat_template", None) is None:

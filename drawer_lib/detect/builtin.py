@@ -23,6 +23,7 @@ from torch import Tensor, nn
 
 from drawer_lib.detect.config import BuiltinDetectConfig
 from drawer_lib.detect.masks import Detection
+from drawer_lib.devices import torch_device
 from drawer_lib.errors import InputError, NonFiniteError
 
 CLASSES = ("background", "front", "edge", "handle", "object")
@@ -131,16 +132,23 @@ def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsem
 
 @torch.inference_mode()
 def class_probs(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[np.ndarray, "C h w"]:
-    """Per-class probabilities at the working size (long side ``size``)."""
+    """Per-class probabilities at the working size (long side ``size``), computed on the
+    model's device (the image is resized on the CPU first, so only the network's numerics
+    depend on it)."""
     H, W = rgb.shape[:2]
     h, w = working_shape(H, W, size)
     x = normalise(rgb)[None]
     if (h, w) != (H, W):
         x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
-    p = torch.softmax(model(x)[0], 0)
+    p = torch.softmax(model(x.to(model_device(model)))[0], 0)
     if not torch.isfinite(p).all():
         raise NonFiniteError("detect: the built-in detector gave non-finite probabilities")
-    return p.numpy()
+    return p.cpu().numpy()
+
+
+def model_device(model: nn.Module) -> torch.device:
+    """The device of ``model``'s first parameter (a network on one device)."""
+    return next(model.parameters()).device
 
 
 def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig) -> list[Detection]:
@@ -301,8 +309,9 @@ def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:
 class BuiltinDetector:
     """The trained network with its decoding, as the ``detect`` stage runs it."""
 
-    def __init__(self, weights: Path | Sequence[Path], cfg: BuiltinDetectConfig):
+    def __init__(self, weights: Path | Sequence[Path], cfg: BuiltinDetectConfig, device: torch.device | str = "cpu"):
         self.model, self.info = load_detector(weights)
+        self.model.to(torch_device(str(device), "detect.device"))
         self.cfg = cfg
         files = [str(w) for w in weight_files(weights)]
         self.sources = {"weights": files[0] if len(files) == 1 else files}

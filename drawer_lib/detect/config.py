@@ -117,6 +117,9 @@ class DetectorTrainConfig:
     merged over each fit kitchen's, never over the kitchens it is scored on: domain
     randomisation, the fit drawing sizes and handle rates the train split does not (its keys
     are checked when a stage starts, :func:`drawer_lib.detect.train.check_layouts`).
+    ``layout_beside``: keys of a layout block merged over each fit kitchen's (after ``layout``)
+    for a second rendering of it that the fit trains on beside the first, its crops drawn from
+    both (empty: none; the kitchens as drawn stay in the fit whole).
     ``seeds``: one fit from each seed (the ``detector_fit@<seed>`` stage each, cached apart, so
     adding a seed fits only that one), averaged as one ensemble whose class probabilities are
     their mean (the ``detector`` stage); a fit reads only its own seed, never this list.
@@ -131,7 +134,10 @@ class DetectorTrainConfig:
     its state (weights, optimiser, schedule, random streams, curve) every that many steps and
     when it is interrupted, and a rerun with the same settings and views goes on from there to
     the same weights as an uninterrupted fit (:func:`drawer_lib.detect.train.fit_detector`; a
-    job past its time limit on a cluster loses at most that many steps); 0: never."""
+    job past its time limit on a cluster loses at most that many steps); 0: never. ``device``:
+    where the fit, the averaging and the scoring run the network (``cpu``, ``cuda``,
+    ``cuda:<index>``): the same initial weights and crops on every device, different last bits
+    (so a fit parameter: changing it refits), the weights written for the CPU."""
 
     # keys only the ``detector`` stage reads, never a fit: changing them must not refit
     NOT_FIT_KEYS: ClassVar[frozenset[str]] = frozenset({"seeds", "average_steps", "average_lr", "average_warmup",
@@ -152,12 +158,14 @@ class DetectorTrainConfig:
     log_every: int = 100
     iou_match: float = 0.5
     layout: dict[str, Any] = field(default_factory=dict)
+    layout_beside: dict[str, Any] = field(default_factory=dict)
     seeds: list[int] = field(default_factory=lambda: [0])
     average_steps: int = 1000
     average_lr: float = 1e-3
     average_warmup: int = 100
     average_layout: dict[str, Any] = field(default_factory=dict)
     checkpoint_every: int = 250
+    device: str = "cpu"
 
     def __post_init__(self):
         if not self.kitchens:

@@ -11,6 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from drawer_lib.detect.config import DetectConfig, PriorsConfig
+from drawer_lib.devices import torch_device
 from drawer_lib.hub import model_dir
 from drawer_lib.detect.masks import Detection
 from drawer_lib.errors import NonFiniteError
@@ -49,7 +50,7 @@ class OwlSamDetector:
         from transformers import Owlv2ForObjectDetection, Owlv2Processor, SamModel, SamProcessor
 
         f = self.f = cfg.foundation
-        self.device = torch.device(cfg.device)
+        self.device = torch_device(cfg.device, "detect.device")
         det_dir = model_dir(f.detector, cfg.allow_download, "detect.foundation.detector")
         seg_dir = model_dir(f.segmenter, cfg.allow_download, "detect.foundation.segmenter")
         self.det = Owlv2ForObjectDetection.from_pretrained(det_dir, local_files_only=True).eval().to(self.device)
@@ -107,7 +108,7 @@ class DepthAnythingPriors:
         from transformers import AutoImageProcessor, AutoModelForDepthEstimation
 
         self.cfg = cfg
-        self.device = torch.device(cfg.device)
+        self.device = torch_device(cfg.device, "priors.device")
         d = model_dir(cfg.depth_model, cfg.allow_download, "priors.depth_model")
         self.model = AutoModelForDepthEstimation.from_pretrained(d, local_files_only=True).eval().to(self.device)
         self.proc = AutoImageProcessor.from_pretrained(d, local_files_only=True)

@@ -61,7 +61,7 @@ def make_detector(cfg: DetectConfig, weights: Path | Sequence[Path]):
     if cfg.model == "builtin":
         from drawer_lib.detect.builtin import BuiltinDetector
 
-        return BuiltinDetector(weights, cfg.builtin)
+        return BuiltinDetector(weights, cfg.builtin, cfg.device)
     from drawer_lib.detect.foundation import OwlSamDetector
 
     return OwlSamDetector(cfg)

@@ -23,9 +23,10 @@ from torch.optim.swa_utils import AveragedModel
 
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.config.typed import to_typed
-from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, load_detector, normalise, resize_mask, save_detector, working_shape
+from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, load_detector, model_device, normalise, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
+from drawer_lib.devices import device_name, torch_device
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.io.atomic import atomic_open
 from drawer_lib.metrics.detections import match_fronts
@@ -104,10 +105,11 @@ def class_weights(samples: list[Sample]) -> torch.Tensor:
 
 def _train_step(model: TinyUNet, opt: torch.optim.Optimizer, samples: list[Sample], cfg: DetectorTrainConfig,
                 g: torch.Generator, weight: torch.Tensor, step: int) -> float:
-    """One step of Adam on a batch of crops (:func:`_crop_batch`); returns its loss (a
-    :class:`NonFiniteError` if it is not finite)."""
+    """One step of Adam on a batch of crops (:func:`_crop_batch`, drawn on the CPU from ``g``
+    whatever the device, so every device sees the same crops) on ``weight``'s device; returns
+    its loss (a :class:`NonFiniteError` if it is not finite)."""
     x, y = _crop_batch(samples, cfg.batch, cfg.crop, g, cfg.color_jitter, cfg.scale_jitter)
-    loss = F.cross_entropy(model(x), y, weight=weight, ignore_index=-100)
+    loss = F.cross_entropy(model(x.to(weight.device)), y.to(weight.device), weight=weight, ignore_index=-100)
     if not torch.isfinite(loss):
         raise NonFiniteError(f"detector: loss {float(loss)} at step {step}")
     opt.zero_grad(set_to_none=True)
@@ -155,15 +157,19 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     of the step in progress, :func:`~drawer_lib.runner.deferred_interrupts`): a later call with the
     same settings, seed and views (:func:`fit_fingerprint`) goes on from the saved step to the
     same weights, bit for bit on the same machine and threads, as a fit never stopped; its
-    ``curve`` gets the earlier rows again first. The file is removed once the fit is done."""
+    ``curve`` gets the earlier rows again first. The file is removed once the fit is done.
+
+    ``cfg.device``: where the network trains (``cpu``, ``cuda``); it starts from the same
+    weights and sees the same crops on every device, and comes back on the CPU."""
     if not samples:
         raise InputError("detector: no training views (detector.kitchens rendered nothing)")
+    dev = train_device(cfg)
     torch.manual_seed(seed)
     g = torch.Generator().manual_seed(seed)
-    model = TinyUNet(cfg.width)
+    model = TinyUNet(cfg.width).to(dev)  # initialised on the CPU from ``seed``, then moved
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=cfg.steps, pct_start=0.1)
-    weight = class_weights(samples)
+    weight = class_weights(samples).to(dev)
     rows: list[tuple[int, float, float]] = []  # (step, wall_s, loss) as logged
     fingerprint = fit_fingerprint(samples, cfg, seed) if resume is not None else ""
     state = _load_state(resume, fingerprint) if resume is not None else None
@@ -191,7 +197,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     model.train()
     done, in_step = start - 1, False
     try:
-        with deferred_interrupts() if resume is not None else nullcontext([]) as pending:
+        with deferred_interrupts() if resume is not None else nullcontext([]) as pending, fit_numerics(dev):
             for step in progress(range(start, cfg.steps + 1), desc="train", total=cfg.steps, initial=start - 1):
                 in_step = True
                 loss = _train_step(model, opt, samples, cfg, g, weight, step)
@@ -215,7 +221,18 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
         raise
     if resume is not None:
         resume.unlink(missing_ok=True)
-    return model.eval(), [r[2] for r in rows]
+    return model.cpu().eval(), [r[2] for r in rows]
+
+
+def fit_numerics(dev: torch.device):
+    """The numerics a fit on ``dev`` runs under: on CUDA, cuDNN's deterministic convolutions in
+    full float32 (no TF32, whose 10-bit mantissa moved the third step's loss by 1.5e-4 on an
+    H200) and without autotuning, so every run picks the same kernels; the bilinear
+    upsampling's and max-pooling's backward passes still add with atomics, so two CUDA fits can
+    differ in the last bits. On the CPU nothing changes."""
+    if dev.type != "cuda":
+        return nullcontext()
+    return torch.backends.cudnn.flags(enabled=True, benchmark=False, deterministic=True, allow_tf32=False)
 
 
 def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int,
@@ -231,19 +248,21 @@ def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig
         raise ValueError(f"average_fit: {cfg.average_steps} steps do not pass the warm-up of {cfg.average_warmup}")
     if not samples:
         raise InputError("detector: no training views to average over (detector.kitchens rendered nothing)")
+    dev = train_device(cfg)
     g = torch.Generator().manual_seed(seed)
-    net = copy.deepcopy(model).train()
+    net = copy.deepcopy(model).to(dev).train()
     avg = AveragedModel(net, use_buffers=True)  # the first update sets it to the weights of that step
     opt = torch.optim.Adam(net.parameters(), lr=cfg.average_lr)
-    weight = class_weights(samples)
-    for step in progress(range(1, cfg.average_steps + 1), desc=f"average fit {seed}", total=cfg.average_steps):
-        for group in opt.param_groups:
-            group["lr"] = cfg.average_lr * min(1.0, step / max(cfg.average_warmup, 1))
-        loss = _train_step(net, opt, samples, cfg, g, weight, step)
-        if step > cfg.average_warmup:
-            avg.update_parameters(net)
-        if curve is not None and (step % cfg.log_every == 0 or step == cfg.average_steps):
-            curve.log(step, seed=seed, loss=loss)
+    weight = class_weights(samples).to(dev)
+    with fit_numerics(dev):
+        for step in progress(range(1, cfg.average_steps + 1), desc=f"average fit {seed}", total=cfg.average_steps):
+            for group in opt.param_groups:
+                group["lr"] = cfg.average_lr * min(1.0, step / max(cfg.average_warmup, 1))
+            loss = _train_step(net, opt, samples, cfg, g, weight, step)
+            if step > cfg.average_warmup:
+                avg.update_parameters(net)
+            if curve is not None and (step % cfg.log_every == 0 or step == cfg.average_steps):
+                curve.log(step, seed=seed, loss=loss)
     out = TinyUNet(model.width)
     out.load_state_dict(avg.module.state_dict())
     return out.eval()
@@ -271,8 +290,9 @@ def score_probs(views: list[tuple[np.ndarray, np.ndarray]], dc: BuiltinDetectCon
 def pixel_accuracy(model: TinyUNet | DetectorEnsemble, samples: list[Sample]) -> float:
     with torch.inference_mode():
         ok = n = 0
+        dev = model_device(model)
         for s in samples:
-            p = model(s.x[None])[0].argmax(0)
+            p = model(s.x[None].to(dev))[0].argmax(0).cpu()
             ok += int((p == s.y).sum())
             n += s.y.numel()
     return ok / max(n, 1)
@@ -302,10 +322,16 @@ def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig,
     return out
 
 
+def train_device(cfg: DetectorTrainConfig) -> torch.device:
+    """Where the detector's stages run the network (``detector.device``), checked: a
+    :class:`ConfigError` when this machine cannot (:func:`~drawer_lib.devices.torch_device`)."""
+    return torch_device(cfg.device, "detector.device", "use detector.device: cpu")
+
+
 def check_layouts(cfg: DetectorTrainConfig) -> None:
     """A :class:`ConfigError` naming any key of ``cfg.layout`` or ``cfg.average_layout`` that is
     not a field of a kitchen's layout block, before a stage does any work."""
-    for name in ("layout", "average_layout"):
+    for name in ("layout", "layout_beside", "average_layout"):
         unknown = set(getattr(cfg, name)) - LAYOUT_KEYS
         if unknown:
             raise ConfigError(f"detector.{name}: unknown keys {sorted(unknown)} (the fields of a scene's synth.layout)")
@@ -331,8 +357,12 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     ``cfg.eval_kitchens``, which it never saw. ``resume``: where an interrupted fit keeps its
     state and a rerun goes on from it (:func:`fit_detector`)."""
     check_layouts(cfg)
+    dev = train_device(cfg)
     t0 = time.perf_counter()
     train_views = _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
+    n_drawn = len(train_views)
+    if cfg.layout_beside:  # the same kitchens once more, as layout_beside draws them
+        train_views += _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run, cfg.layout_beside)
     test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     render_s = time.perf_counter() - t0
     samples = [to_sample(v, cfg.working_size) for v in train_views]
@@ -343,8 +373,11 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     train_s = time.perf_counter() - t1
     dc = fit_decoding(cfg)
     save_detector(run.dir / BENCH["detector_fit_weights"], model, fit_info(cfg))
-    m = {"train_views": len(train_views), "test_views": len(test_views), "render_s": round(render_s, 2),
-         "train_s": round(train_s, 2), "final_loss": round(losses[-1], 4),
+    model.to(dev)  # scored where it was fitted
+    m = {"device": device_name(dev), "train_views": len(train_views), "test_views": len(test_views),
+         **({"layout_beside": dict(cfg.layout_beside), "layout_beside_views": len(train_views) - n_drawn}
+            if cfg.layout_beside else {}),
+         "render_s": round(render_s, 2), "train_s": round(train_s, 2), "final_loss": round(losses[-1], 4),
          "pixel_accuracy_train": round(pixel_accuracy(model, samples), 4),
          "pixel_accuracy_test": round(pixel_accuracy(model, [to_sample(v, cfg.working_size) for v in test_views]), 4)}
     for split, vs in (("train", train_views), ("test", test_views)):
@@ -368,6 +401,7 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     A missing fit, or one fitted with other settings than ``cfg``, is an :class:`InputError`
     naming it."""
     check_layouts(cfg)
+    dev = train_device(cfg)
     if len(fit_dirs) != len(cfg.seeds):
         raise ValueError(f"run_combine_detector: {len(fit_dirs)} fit folders for detector.seeds = {list(cfg.seeds)}")
     want = fit_info(cfg)
@@ -405,7 +439,8 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
         info["average"] = {"steps": cfg.average_steps, "lr": cfg.average_lr, "warmup": cfg.average_warmup,
                            **({"layout": dict(cfg.average_layout)} if cfg.average_layout else {})}
     save_detector(dst, members[0] if len(members) == 1 else members, info)
-    model = members[0] if len(members) == 1 else DetectorEnsemble(members)
+    model = (members[0] if len(members) == 1 else DetectorEnsemble(members)).to(dev)
+    m["device"] = device_name(dev)
     t0 = time.perf_counter()
     test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     m["render_s"] = round(time.perf_counter() - t0, 2)
@@ -432,6 +467,8 @@ def run_score_detector(cfg: DetectorTrainConfig, dc: BuiltinDetectConfig, base_s
     if info.get("working_size") != dc.working_size:
         raise InputError(f"{weights}: fitted at working size {info.get('working_size')}, but detect.builtin.working_size "
                          f"= {dc.working_size}")
+    dev = train_device(cfg)
+    model.to(dev)
     t0 = time.perf_counter()
     views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     render_s = time.perf_counter() - t0
@@ -441,7 +478,8 @@ def run_score_detector(cfg: DetectorTrainConfig, dc: BuiltinDetectConfig, base_s
     infer_s = time.perf_counter() - t1
     used = score_probs(probs, dc, cfg.iou_match)
     fit = score_probs(probs, fit_decoding(cfg), cfg.iou_match)
-    return {"eval_kitchens": list(cfg.eval_kitchens), "test_views": len(views), "render_s": round(render_s, 2),
+    return {"device": device_name(dev), "eval_kitchens": list(cfg.eval_kitchens), "test_views": len(views),
+            "render_s": round(render_s, 2),
             "infer_s": round(infer_s, 2), "merge_edge": dc.merge_edge,
             "fronts_2d_precision_test": used["precision"], "fronts_2d_recall_test": used["recall"],
             "fronts_true": used["fronts_true"], "fronts_pred": used["fronts_pred"], "fronts_matched": used["fronts_matched"],

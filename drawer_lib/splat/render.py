@@ -9,6 +9,7 @@ import torch
 from jaxtyping import Float
 from torch import Tensor
 
+from drawer_lib.devices import torch_device
 from drawer_lib.errors import ConfigError
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.splat.project import project_gaussians, project_gaussians_fused, quat_scale_to_covar
@@ -101,9 +102,7 @@ def _render_gsplat(g: Gaussians, cam: Camera, sh_degree: int, background: Tensor
     """gsplat 1.5's ``rasterization`` (classic mode, RGB + expected depth, absgrad) on
     ``device``; the outputs are moved back to the Gaussians' device (gradients flow through
     the copies), ``radii`` is the larger of gsplat's two per-axis radii."""
-    dev = torch.device(device)
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise ConfigError("splat backend gsplat needs CUDA, which this machine does not have; use backend: cpu")
+    dev = torch_device(device, "the gsplat backend's device", "the gsplat backend needs CUDA; use appearance.backend: cpu")
     try:
         import gsplat
     except ImportError as e:

@@ -118,6 +118,21 @@ def test_the_model_answers_an_image_through_its_own_processor(family, tmp_path):
     assert n_split - n == (24 if family == "idefics3" else 0)
 
 
+@pytest.mark.gpu
+@pytest.mark.parametrize("family", ["llava", "idefics3"])
+def test_the_model_answers_on_cuda_as_on_the_cpu(family, tmp_path):
+    """``articulate.vlm.device: cuda``: the processor's tensors reach the card and the reply and
+    its cost in tokens are the CPU's."""
+    pytest.importorskip("transformers")
+    import tiny_hf
+
+    d = getattr(tiny_hf, f"tiny_{family}")(tmp_path / family)
+    img = (np.random.default_rng(0).random((40, 70, 3)) * 255).astype(np.uint8)
+    cpu, gpu = (VlmTyper(VlmConfig(model=HubModel("none/none", path=str(d)), max_new_tokens=3, device=dev)).ask(img)
+                for dev in ("cpu", "cuda"))
+    assert gpu == cpu and gpu[0] == "drawer drawer drawer"
+
+
 @pytest.fixture()
 def project(tmp_path, exact_capture):
     gt_mesh_project(tmp_path, exact_capture[0])
