@@ -15,6 +15,7 @@ writes them (uint8 images and classes) so a machine without the renderer can tim
 """
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -80,7 +81,7 @@ def main() -> None:
                 yield x
             times.append(time.perf_counter())
 
-        c = tc.__class__(**{**tc.__dict__, "device": dev, "steps": a.steps, "log_every": 1, "checkpoint_every": 0})
+        c = dataclasses.replace(tc, device=dev, steps=a.steps, log_every=1, checkpoint_every=0)
         try:
             _, losses = fit_detector(samples, c, seed=0, progress=timed)
         except ConfigError as e:
