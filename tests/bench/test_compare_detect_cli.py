@@ -40,3 +40,23 @@ def test_other_kitchens_or_an_odd_count_are_refused(tmp_path):
     (tmp_path / "bad.json").write_text("{}")
     r = _run(a, tmp_path / "bad.json")
     assert r.returncode != 0 and "bad.json: not a bench_detect summary" in r.stderr
+
+
+def test_settings_fitted_several_times(tmp_path):
+    """--base / --other: each side pooled over its fits, each fit's figures beside it, the
+    interval drawn over fits and kitchens; other kitchens, or a side alone, are refused."""
+    d0 = _summary(tmp_path / "d0.json", [(0, 8, 10, 10), (1, 4, 5, 6)])
+    d1 = _summary(tmp_path / "d1.json", [(0, 6, 10, 10), (1, 4, 5, 6)])
+    c0 = _summary(tmp_path / "c0.json", [(0, 9, 10, 10), (1, 5, 5, 6)])
+    r = _run("--base", d0, d1, "--other", c0, "--json", tmp_path / "out.json", "--draws", "300")
+    assert r.returncode == 0, r.stderr
+    out = json.loads((tmp_path / "out.json").read_text())
+    assert out["fits"] == [2, 1] and out["kitchens"] == 2 and out["base"]["found"] == 22 and out["base"]["true"] == 32
+    assert out["base"]["recall"] == 22 / 32 and [f["recall"] for f in out["base"]["fits"]] == [12 / 16, 10 / 16]
+    assert out["change"]["recall"] == 14 / 16 - 22 / 32
+    assert "| 2 against 1 | 16 |" in r.stdout and "fits 0.750 / F1" in r.stdout
+    other = _summary(tmp_path / "x.json", [(0, 8, 10, 10), (2, 4, 5, 6)])
+    r = _run("--base", d0, other, "--other", c0)
+    assert r.returncode != 0 and "compare the same kitchens" in r.stderr
+    r = _run("--base", d0)
+    assert r.returncode != 0 and "--base and --other go together" in r.stderr

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from drawer_lib.bench.resample import pooled_prf, resample_kitchens
+from drawer_lib.bench.resample import pooled_prf, resample_fits, resample_kitchens
 
 
 def test_pooled_figures_sum_the_kitchens_first():
@@ -57,3 +57,60 @@ def test_the_same_scores_change_by_nothing_and_bad_shapes_are_named():
         resample_kitchens(np.zeros((0, 3)))
     with pytest.raises(ValueError, match="level"):
         resample_kitchens(base, level=1.0)
+
+
+def _slow_fits(base, other, draws, seed, level):
+    """The two-level draw written out: kitchens, then each side's fits, one draw at a time."""
+    rng = np.random.default_rng(seed)
+    K = base.shape[1]
+    idx = rng.integers(0, K, size=(draws, K))
+    fits = [rng.integers(0, len(c), size=(draws, len(c))) for c in (base, other)]
+    rows = {"base": [], "other": [], "change": []}
+    for i in range(draws):
+        f = []
+        for c, fi in zip((base, other), fits):
+            t = sum(c[j][k] for j in fi[i] for k in idx[i])
+            f.append([t[0] / t[1], t[0] / t[2], 2 * t[0] / (t[1] + t[2])])
+        rows["base"].append(f[0]), rows["other"].append(f[1]), rows["change"].append(np.subtract(f[1], f[0]))
+    q = [50 * (1 - level), 50 * (1 + level)]
+    return {k: {n: np.percentile(np.array(v)[:, j], q).tolist() for j, n in enumerate(("precision", "recall", "f1"))}
+            for k, v in rows.items()}
+
+
+def _counts(rng, k=9):
+    true = rng.integers(5, 20, size=k)
+    pred = true + rng.integers(-3, 4, size=k)
+    return np.stack([np.minimum(pred, true) - rng.integers(0, 3, size=k), pred, true], 1)
+
+
+def test_fits_drawn_with_the_kitchens_equal_the_slow_reference():
+    rng = np.random.default_rng(2)
+    base = np.stack([_counts(rng), _counts(rng)])
+    other = np.stack([_counts(rng), _counts(rng), _counts(rng)])
+    other[:, :, 2] = base[0, :, 2]  # the same kitchens: the same true parts
+    base[:, :, 2] = base[0, :, 2]
+    got = resample_fits(base, other, draws=300, seed=5, level=0.8)
+    want = _slow_fits(base.astype(float), other.astype(float), 300, 5, 0.8)
+    for k in want:
+        for n in want[k]:
+            assert got[k][n] == pytest.approx(want[k][n], abs=1e-12), (k, n)
+
+
+def test_one_fit_a_side_is_the_kitchens_alone_and_fits_that_disagree_widen_the_change():
+    rng = np.random.default_rng(4)
+    base, other = _counts(rng, 12), _counts(rng, 12)
+    other[:, 2] = base[:, 2]
+    assert resample_fits(base[None], other[None], draws=500, seed=1) == resample_kitchens(base, other, draws=500, seed=1)
+    # two fits of the base that find 3 parts more and 3 fewer in every kitchen: the same pooled
+    # figures as one fit found twice, but a change whose interval is wider (against a setting
+    # that finds one part more than the base everywhere, so the kitchens alone move it little)
+    other = base + np.array([1, 1, 0])
+    lo, hi = base.copy(), base.copy()
+    lo[:, 0], hi[:, 0] = np.maximum(base[:, 0] - 3, 0), np.minimum(base[:, 0] + 3, base[:, 1])
+    same = resample_fits(np.stack([base, base]), other[None], draws=2000, seed=0)["change"]["recall"]
+    apart = resample_fits(np.stack([lo, hi]), other[None], draws=2000, seed=0)["change"]["recall"]
+    assert apart[1] - apart[0] > 3 * (same[1] - same[0]) and same[0] > 0
+    with pytest.raises(ValueError, match="fits of the same kitchens"):
+        resample_fits(base[None], other[None, :5])
+    with pytest.raises(ValueError, match=r"expected \[F >= 1, K >= 1, 3\]"):
+        resample_fits(base, other[None])
