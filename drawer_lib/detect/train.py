@@ -300,10 +300,12 @@ def pixel_accuracy(model: TinyUNet | DetectorEnsemble, samples: list[Sample]) ->
 
 def stage_inputs(cfg) -> tuple[DetectorTrainConfig, dict, RenderConfig]:
     """What the detector's stages read from their Hydra config ``cfg``: the fit's settings
-    (``detector``), the benchmark's base scene (``scene``, resolved) and the renderer's
-    (``capture.render``)."""
-    return (to_typed(DetectorTrainConfig, cfg.detector, "detector"), OmegaConf.to_container(cfg.scene, resolve=True),
-            to_typed(RenderConfig, cfg.capture.render, "capture.render"))
+    (``detector``, its layout keys and device checked here, before a stage makes its folder),
+    the benchmark's base scene (``scene``, resolved) and the renderer's (``capture.render``)."""
+    tc = to_typed(DetectorTrainConfig, cfg.detector, "detector")
+    check_layouts(tc)
+    train_device(tc)
+    return tc, OmegaConf.to_container(cfg.scene, resolve=True), to_typed(RenderConfig, cfg.capture.render, "capture.render")
 
 
 def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, split: str, kitchens: list[int],

@@ -588,3 +588,11 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
         assert sorted(np.unique(lab[lab > 0]).tolist()) == [r["id"] for r in rows]
         assert {r["label"] for r in rows} <= {"front", "handle", "object"}
     assert json.loads(sp.metrics("detect").read_text())["model"] == "builtin"
+    if not torch.cuda.is_available():  # a device this machine lacks: one line naming the key, nothing lost
+        before = sp.metrics("detect").read_text()
+        r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.device=cuda")
+        assert r.returncode == 2 and r.stderr.strip().splitlines()[-1].startswith("error: detect.device = 'cuda'")
+        assert sp.metrics("detect").read_text() == before
+        r = run_stage("detector_fit", tmp_path / "gpu", *short, "detector.device=cuda")
+        assert r.returncode == 2 and "error: detector.device = 'cuda'" in r.stderr and "render" not in r.stderr
+        assert not (tmp_path / "gpu" / "bench").exists()
