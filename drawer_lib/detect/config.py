@@ -67,7 +67,8 @@ class DetectConfig:
     detector, or what a capture folder carries), ``none``, ``builtin`` (the detector the
     ``detector`` stage trains), ``owlv2_sam`` (``foundation``), ``auto`` (``capture`` when the
     capture has detections, else ``builtin``). Weights are never downloaded unless
-    ``allow_download``."""
+    ``allow_download``. ``device``: where the built-in or foundation network runs (``cpu``,
+    ``cuda``, ``cuda:<index>``; :func:`~drawer_lib.devices.torch_device` checks it first)."""
 
     model: str = "auto"
     allow_download: bool = False
