@@ -29,7 +29,7 @@ import torch
 from drawer_lib.config.compose import compose_config
 from drawer_lib.devices import device_name
 from drawer_lib.detect.data import View
-from drawer_lib.detect.train import Sample, _fit_views, fit_detector, stage_inputs, to_sample
+from drawer_lib.detect.train import Sample, fit_views, fit_detector, stage_inputs, to_sample
 from drawer_lib.errors import ConfigError
 from drawer_lib.runner import StageRun
 
@@ -63,7 +63,7 @@ def main() -> None:
     if a.views:
         samples = load_views(a.views, tc.working_size)
     else:
-        views = _fit_views(tc, base, render, "train", a.kitchens, StageRun("bench", Path("."), Path("."), 0))
+        views = fit_views(tc, base, render, "train", a.kitchens, StageRun("bench", Path("."), Path("."), 0))
         if a.save_views:
             np.savez_compressed(a.save_views, **{f"rgb_{i}": v.rgb for i, v in enumerate(views)},
                                 **{f"classes_{i}": v.classes for i, v in enumerate(views)})

@@ -38,16 +38,22 @@ def counts(path: Path, model: str) -> tuple[list[int], np.ndarray, list[float]]:
     return [k for k, _ in rows], c, [m["ea_score"] for _, m in rows if m.get("ea_score") is not None]
 
 
+def _side(c: np.ndarray, ea: list[float], interval: dict) -> dict:
+    """One setting's pooled figures over the counts ``c`` [..., 3] (kitchens, or fits x kitchens)."""
+    p, r, f1 = pooled_prf(c.reshape(-1, 3))
+    return {"precision": float(p), "recall": float(r), "f1": float(f1), "found": int(c[..., 0].sum()),
+            "predicted": int(c[..., 1].sum()), "true": int(c[..., 2].sum()),
+            "ea_mean": float(np.mean(ea)) if ea else None, "interval": interval}
+
+
+def _with_change(base: dict, other: dict, interval: dict) -> dict:
+    change = {k: other[k] - base[k] for k in ("precision", "recall", "f1")}
+    return {"base": base, "other": other, "change": {**change, "interval": interval}}
+
+
 def compare(base: np.ndarray, other: np.ndarray, ea: tuple[list[float], list[float]], draws: int, seed: int) -> dict:
     iv = resample_kitchens(base, other, draws=draws, seed=seed)
-    out = {}
-    for name, c, e in (("base", base, ea[0]), ("other", other, ea[1])):
-        p, r, f1 = pooled_prf(c)
-        out[name] = {"precision": float(p), "recall": float(r), "f1": float(f1), "found": int(c[:, 0].sum()),
-                     "predicted": int(c[:, 1].sum()), "true": int(c[:, 2].sum()),
-                     "ea_mean": float(np.mean(e)) if e else None, "interval": iv[name]}
-    out["change"] = {k: out["other"][k] - out["base"][k] for k in ("precision", "recall", "f1")}
-    out["change"]["interval"] = iv["change"]
+    out = _with_change(_side(base, ea[0], iv["base"]), _side(other, ea[1], iv["other"]), iv["change"])
     out["kitchens"] = len(base)
     return out
 
@@ -60,27 +66,24 @@ def compare_fits(base: list[np.ndarray], other: list[np.ndarray], ea: tuple[list
     :func:`~drawer_lib.bench.resample.resample_fits`."""
     a, b = np.stack(base), np.stack(other)
     iv = resample_fits(a, b, draws=draws, seed=seed)
-    out = {}
+    sides = []
     for name, c, e in (("base", a, ea[0]), ("other", b, ea[1])):
-        p, r, f1 = pooled_prf(c.reshape(-1, 3))
-        out[name] = {"precision": float(p), "recall": float(r), "f1": float(f1), "found": int(c[..., 0].sum()),
-                     "predicted": int(c[..., 1].sum()), "true": int(c[..., 2].sum()),
-                     "ea_mean": float(np.mean(e)) if e else None, "interval": iv[name],
-                     "fits": [dict(zip(("precision", "recall", "f1"), map(float, pooled_prf(f)))) for f in c]}
-    out["change"] = {k: out["other"][k] - out["base"][k] for k in ("precision", "recall", "f1")}
-    out["change"]["interval"] = iv["change"]
+        sides.append({**_side(c, e, iv[name]),
+                      "fits": [dict(zip(("precision", "recall", "f1"), map(float, pooled_prf(f)))) for f in c]})
+    out = _with_change(*sides, iv["change"])
     out["kitchens"], out["fits"] = a.shape[1], [len(a), len(b)]
     return out
 
 
-def line(label: str, r: dict) -> str:
+def line(label: str, r: dict, parts: int | None = None) -> str:
+    """One table row of a comparison ``r``; ``parts``: the true parts shown (default: the base's)."""
     def one(s: dict) -> str:
         ea = "–" if s["ea_mean"] is None else f"{s['ea_mean']:.2f}"
         each = "" if "fits" not in s else "; fits " + ", ".join(f"{f['recall']:.3f} / F1 {f['f1']:.3f}" for f in s["fits"])
         return (f"{s['precision']:.3f} / {s['recall']:.3f} ({s['found']} / {s['predicted']}), F1 {s['f1']:.3f}, EA {ea}{each}")
     c, iv = r["change"], r["change"]["interval"]
     ch = "; ".join(f"{k} {c[k]:+.3f} [{iv[k][0]:+.3f}, {iv[k][1]:+.3f}]" for k in ("precision", "recall", "f1"))
-    return f"| {label} | {r['base']['true']} | {one(r['base'])} | {one(r['other'])} | {ch} |"
+    return f"| {label} | {r['base']['true'] if parts is None else parts} | {one(r['base'])} | {one(r['other'])} | {ch} |"
 
 
 def main() -> None:
@@ -96,10 +99,7 @@ def main() -> None:
     if a.base or a.other:
         if a.summaries or not (a.base and a.other):
             raise SystemExit("error: --base and --other go together, and without BASE OTHER pairs")
-        sides = []
-        for group in (a.base, a.other):
-            read = [counts(p, a.model) for p in group]
-            sides.append(read)
+        sides = [[counts(p, a.model) for p in group] for group in (a.base, a.other)]
         kitchens = {tuple(k) for side in sides for k, _, _ in side}
         if len(kitchens) != 1:
             raise SystemExit(f"error: the summaries score different kitchens ({sorted(kitchens)}): compare the same kitchens")
@@ -107,8 +107,7 @@ def main() -> None:
                          (sum((e for _, _, e in sides[0]), []), sum((e for _, _, e in sides[1]), [])), a.draws, a.seed)
         print("| fits | parts | base: precision / recall (found / predicted, all fits), F1, EA; each fit's recall / F1 | other "
               "| change, 90 % interval over kitchens and fits |\n|---|---|---|---|---|")
-        print(line(f"{len(a.base)} against {len(a.other)}", r).replace(f"| {r['base']['true']} |",
-                                                                     f"| {r['base']['true'] // len(a.base)} |", 1))
+        print(line(f"{len(a.base)} against {len(a.other)}", r, parts=int(sides[0][0][1][:, 2].sum())))
         if a.json:
             a.json.write_text(json.dumps(r, indent=2))
         return

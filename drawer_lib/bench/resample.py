@@ -44,18 +44,20 @@ def resample_kitchens(base: np.ndarray, other: np.ndarray | None = None, draws: 
     if not 0 < level < 1 or draws < 1:
         raise ValueError(f"resample_kitchens: level {level} must be in (0, 1) and draws {draws} >= 1")
     idx = np.random.default_rng(seed).integers(0, len(a), size=(draws, len(a)))
-    q = [50 * (1 - level), 50 * (1 + level)]
-
-    def interval(v: np.ndarray) -> dict[str, list[float]]:
-        return {name: [float(x) for x in np.nanpercentile(v[:, i], q)] if np.isfinite(v[:, i]).any() else [np.nan, np.nan]
-                for i, name in enumerate(("precision", "recall", "f1"))}
-
     fa = pooled_prf(a[idx])
-    out = {"base": interval(fa)}
+    out = {"base": _interval(fa, level)}
     if other is not None:
         fb = pooled_prf(np.asarray(other, dtype=np.float64)[idx])
-        out["other"], out["change"] = interval(fb), interval(fb - fa)
+        out["other"], out["change"] = _interval(fb, level), _interval(fb - fa, level)
     return out
+
+
+def _interval(v: np.ndarray, level: float) -> dict[str, list[float]]:
+    """Percentile intervals at ``level`` of the draws ``v`` [draws, 3] (precision, recall, F1),
+    undefined draws (NaN) left out; NaN bounds when every draw is undefined."""
+    q = [50 * (1 - level), 50 * (1 + level)]
+    return {name: [float(x) for x in np.nanpercentile(v[:, i], q)] if np.isfinite(v[:, i]).any() else [np.nan, np.nan]
+            for i, name in enumerate(("precision", "recall", "f1"))}
 
 
 def resample_fits(base: np.ndarray, other: np.ndarray, draws: int = 5000, seed: int = 0,
@@ -76,15 +78,10 @@ def resample_fits(base: np.ndarray, other: np.ndarray, draws: int = 5000, seed: 
     K = a.shape[1]
     rng = np.random.default_rng(seed)
     idx = rng.integers(0, K, size=(draws, K))  # first, as resample_kitchens draws them
-    q = [50 * (1 - level), 50 * (1 + level)]
 
     def pooled(c: np.ndarray) -> np.ndarray:  # [draws, 3]: fits drawn, then the draw's kitchens
         f = rng.integers(0, len(c), size=(draws, len(c)))
         return pooled_prf(c[f[:, :, None], idx[:, None, :]].reshape(draws, -1, 3))
 
-    def interval(v: np.ndarray) -> dict[str, list[float]]:
-        return {name: [float(x) for x in np.nanpercentile(v[:, i], q)] if np.isfinite(v[:, i]).any() else [np.nan, np.nan]
-                for i, name in enumerate(("precision", "recall", "f1"))}
-
     fa, fb = pooled(a), pooled(b)
-    return {"base": interval(fa), "other": interval(fb), "change": interval(fb - fa)}
+    return {"base": _interval(fa, level), "other": _interval(fb, level), "change": _interval(fb - fa, level)}

@@ -308,13 +308,13 @@ def stage_inputs(cfg) -> tuple[DetectorTrainConfig, dict, RenderConfig]:
     return tc, OmegaConf.to_container(cfg.scene, resolve=True), to_typed(RenderConfig, cfg.capture.render, "capture.render")
 
 
-def _fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, split: str, kitchens: list[int],
+def fit_views(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, split: str, kitchens: list[int],
                run: StageRun, extra_layout: dict | None = None) -> list[View]:
     """Every ``cfg.frame_every``-th view of ``split``'s kitchens, rendered and labelled (the
     train split's with ``cfg.layout``, then ``extra_layout``, merged over each kitchen's; never
     the scored ones)."""
     if split != "train" and extra_layout:
-        raise ValueError(f"_fit_views: a layout over the {split} split's kitchens")
+        raise ValueError(f"fit_views: a layout over the {split} split's kitchens")
     layout = {**cfg.layout, **(extra_layout or {})} if split == "train" else None
     out = []
     for k in run.progress(kitchens, desc=f"render {split}", total=len(kitchens)):
@@ -361,11 +361,11 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     check_layouts(cfg)
     dev = train_device(cfg)
     t0 = time.perf_counter()
-    train_views = _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
+    train_views = fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)
     n_drawn = len(train_views)
     if cfg.layout_beside:  # the same kitchens once more, as layout_beside draws them
-        train_views += _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run, cfg.layout_beside)
-    test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
+        train_views += fit_views(cfg, base_scene, render, "train", cfg.kitchens, run, cfg.layout_beside)
+    test_views = fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     render_s = time.perf_counter() - t0
     samples = [to_sample(v, cfg.working_size) for v in train_views]
     t1 = time.perf_counter()
@@ -428,11 +428,11 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     m = {"seeds": list(cfg.seeds), "average_steps": cfg.average_steps}
     if cfg.average_steps:
         t0 = time.perf_counter()
-        samples = [to_sample(v, cfg.working_size) for v in _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)]
+        samples = [to_sample(v, cfg.working_size) for v in fit_views(cfg, base_scene, render, "train", cfg.kitchens, run)]
         m["train_views"] = len(samples)
         if cfg.average_layout:  # the same kitchens once more, as average_layout draws them
             samples += [to_sample(v, cfg.working_size)
-                        for v in _fit_views(cfg, base_scene, render, "train", cfg.kitchens, run, cfg.average_layout)]
+                        for v in fit_views(cfg, base_scene, render, "train", cfg.kitchens, run, cfg.average_layout)]
             m["average_layout"], m["average_layout_views"] = dict(cfg.average_layout), len(samples) - m["train_views"]
         m["render_train_s"] = round(time.perf_counter() - t0, 2)
         t1 = time.perf_counter()
@@ -444,7 +444,7 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     model = (members[0] if len(members) == 1 else DetectorEnsemble(members)).to(dev)
     m["device"] = device_name(dev)
     t0 = time.perf_counter()
-    test_views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
+    test_views = fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     m["render_s"] = round(time.perf_counter() - t0, 2)
     s = score_views(model, test_views, fit_decoding(cfg), cfg.iou_match)
     return {**m, "test_views": len(test_views),
@@ -472,7 +472,7 @@ def run_score_detector(cfg: DetectorTrainConfig, dc: BuiltinDetectConfig, base_s
     dev = train_device(cfg)
     model.to(dev)
     t0 = time.perf_counter()
-    views = _fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
+    views = fit_views(cfg, base_scene, render, "test", cfg.eval_kitchens, run)
     render_s = time.perf_counter() - t0
     t1 = time.perf_counter()
     probs = [(class_probs(model, v.rgb, dc.working_size), v.fronts)

@@ -34,7 +34,7 @@ from drawer_lib.detect.builtin import (
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, _crop_batch, _fit_views, average_fit, check_layouts, class_weights, fit_detector, pixel_accuracy
+from drawer_lib.detect.train import Sample, _crop_batch, fit_views, average_fit, check_layouts, class_weights, fit_detector, pixel_accuracy
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
@@ -486,7 +486,7 @@ def test_the_fit_kitchens_take_the_layout_keys_and_the_scored_ones_do_not(tmp_pa
     with pytest.raises(ConfigError, match="needs detector.average_steps > 0"):
         DetectorTrainConfig(average_layout={"front_gap": 0.001}, average_steps=0)
     with pytest.raises(ValueError, match="a layout over the test split's kitchens"):
-        _fit_views(DetectorTrainConfig(), base, RenderConfig(), "test", [0], StageRun("detector", tmp_path, tmp_path, 0),
+        fit_views(DetectorTrainConfig(), base, RenderConfig(), "test", [0], StageRun("detector", tmp_path, tmp_path, 0),
                    {"front_gap": 0.001})
 
 
