@@ -276,7 +276,13 @@ class TypesConfig:
     gives a front (the built-in detector's and generic detections' ``front``); with
     ``use_labels``, a planar segment more than half of whose label votes are other labels
     (``box``, ``object``, ``kettle``: what a detector called an object) is a rigid object, not a
-    front (DRAWER takes its articulated parts from the masks of its front prompts alone)."""
+    front (DRAWER takes its articulated parts from the masks of its front prompts alone).
+    ``pair_pull`` (fraction of the width; 0: off; score rule only): a front whose pull is a
+    vertical bar within this of its middle, at least 2 x ``pair_min_width`` (m) wide, for which
+    the evidence excludes neither side-hinged door and that is not a sliding panel with a
+    partner, is two doors meeting at its middle, each hinged on its outer edge (a pair a
+    detector joined: a single front never carries its pull there;
+    :func:`~drawer_lib.articulation.decide.pair_of_doors`)."""
 
     rule: str = "score"
     weights: str = "fitted"
@@ -289,6 +295,8 @@ class TypesConfig:
     window_contrast: float | None = 0.15
     glazed_low: float | None = 0.75
     drawer_max_height: float = 0.45
+    pair_pull: float = 0.1
+    pair_min_width: float = 0.25
     edge_frac: float = 0.3
     use_labels: bool = True
     door_labels: list[str] = field(default_factory=lambda: ["door", "flap", "cabinet door"])
@@ -321,6 +329,11 @@ class TypesConfig:
             raise ConfigError(f"articulate.types.filler_width = {self.filler_width} must be in [0, 10) m or null")
         if self.hinged_min_height is not None and not 0 <= self.hinged_min_height < 10:
             raise ConfigError(f"articulate.types.hinged_min_height = {self.hinged_min_height} must be in [0, 10) m or null")
+        if not 0 <= self.pair_pull < 0.5:
+            raise ConfigError(f"articulate.types.pair_pull = {self.pair_pull} must be in [0, 0.5) "
+                              "(a fraction of the width; 0: off)")
+        if not 0 < self.pair_min_width < 5:
+            raise ConfigError(f"articulate.types.pair_min_width = {self.pair_min_width} must be in (0, 5) m")
         if not 0 < self.drawer_max_height < 10:
             raise ConfigError(f"articulate.types.drawer_max_height = {self.drawer_max_height} must be in (0, 10) m")
         check_weights(self.prior, "articulate.types.prior")

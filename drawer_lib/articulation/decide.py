@@ -17,6 +17,8 @@ place of the peak:
 | no handle | not articulated (a fixed panel) |
 """
 
+import dataclasses
+
 import numpy as np
 
 from drawer_lib.articulation.config import TypesConfig
@@ -134,6 +136,39 @@ def glazed(ev: Evidence, cfg: TypesConfig, z_mid: float) -> dict[str, str]:
         out["fixed"] = (f"a window with its centre {z_mid:.2f} m up (>= glazed_low {cfg.glazed_low} m): "
                         "a microwave's or a glass cabinet's door, which moves")
     return out
+
+
+PAIR_BAND = 0.02  # of the width, and m: a pull or a width this close to the pair rule's bounds is a decision near them
+
+
+def pair_of_doors(h: Handle | None, size: tuple[float, float], excluded: dict[str, str],
+                  cfg: TypesConfig) -> tuple[str, bool] | None:
+    """Whether a front of ``size`` (w, h) m whose pull is ``h`` is two doors meeting at its
+    middle (``cfg.pair_pull``; 0: never): its pull is a vertical bar within ``pair_pull`` of
+    the width from the middle (no single front carries it there: a door's pull sits at its free
+    edge, a drawer's or a flap's lies along an edge), it is at least 2 x ``pair_min_width`` wide
+    and ``excluded`` (the score rule's ruled-out hypotheses) holds neither side-hinged door.
+    Returns (why, near) or None; ``near``: the pull or the width lies within
+    :data:`PAIR_BAND` of a bound, so that another machine's last bits could decide otherwise."""
+    if not cfg.pair_pull or h is None or h.orientation != "vertical":
+        return None
+    off, w, w_min = abs(h.a_u - 0.5), size[0], 2 * cfg.pair_min_width
+    if off > cfg.pair_pull or w < w_min or "door_left" in excluded or "door_right" in excluded:
+        return None
+    near = cfg.pair_pull - off < PAIR_BAND or w - w_min < PAIR_BAND
+    why = (f"a pair of doors meeting at its middle: a vertical pull {off:.3f} of the width off it "
+           f"(<= pair_pull {cfg.pair_pull}) on a front {w:.2f} m wide (>= 2 x pair_min_width {cfg.pair_min_width} m)")
+    return why, near
+
+
+def half_handle(h: Handle, side: str) -> Handle | None:
+    """The pull ``h`` of a front cut at its middle, on the ``side`` half (left | right) in that
+    half's unit square; None when its centre lies on the other half."""
+    if side == "left" and h.a_u <= 0.5:
+        return dataclasses.replace(h, a_u=2.0 * h.a_u)
+    if side == "right" and h.a_u > 0.5:
+        return dataclasses.replace(h, a_u=2.0 * h.a_u - 1.0)
+    return None
 
 
 def margin_confidence(scores: dict[str, float], best: str) -> tuple[str, float, float]:

@@ -103,6 +103,27 @@ def plumb(front: Front, max_deg: float) -> tuple[Front, float]:
     return Front(front.center, tuple(h.tolist()), tuple(u.tolist()), front.size), tilt
 
 
+def cut_u(front: Front, t: float) -> tuple[Front, Front]:
+    """``front`` cut across u at ``t`` (0 < t < 1, the cut's place as a fraction of the width
+    from the -u side): (the -u piece, the +u piece), each in the front's plane and axes, of the
+    front's height, together exactly its width.
+
+    >>> a, b = cut_u(Front((1.0, 0.0, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.8, 0.6)), 0.5)
+    >>> a.center, a.size, b.center, b.size
+    ((0.8, 0.0, 0.5), (0.4, 0.6), (1.2, 0.0, 0.5), (0.4, 0.6))
+    """
+    if not 0 < t < 1:
+        raise ValueError(f"cut_u: t = {t} must be in (0, 1)")
+    w, h = front.size
+    c, u = np.asarray(front.center, float), np.asarray(front.u, float)
+    at = (t - 0.5) * w  # the cut's u offset from the centre
+    pieces = []
+    for lo, hi in ((-w / 2, at), (at, w / 2)):
+        center = c + 0.5 * (lo + hi) * u
+        pieces.append(Front(tuple(center.tolist()), front.normal, front.u, (float(hi - lo), float(h))))
+    return pieces[0], pieces[1]
+
+
 def mask_uv(front: Front, mask: np.ndarray, cam: Camera, border_px: int, min_pixels: int
             ) -> tuple[np.ndarray, np.ndarray] | None:
     """((u, v) [N, 2] of the pixels of ``mask`` [H, W] cast from ``cam`` onto the front plane,

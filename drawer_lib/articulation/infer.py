@@ -13,10 +13,11 @@ import numpy as np
 import trimesh
 
 from drawer_lib.articulation.config import ArticulateConfig, FalseFrontsConfig
-from drawer_lib.articulation.decide import decide_by_handle, decide_by_score
+from drawer_lib.articulation.decide import decide_by_handle, decide_by_score, half_handle, pair_of_doors
 from drawer_lib.articulation.fronts import (
     abutting_edges,
     coplanar_iou,
+    cut_u,
     edge_moves,
     fit_front,
     plumb,
@@ -263,33 +264,49 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
             dec = decide_by_handle(h, s.labels, cfg.types)
-        reason = dec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
-        low = (dec.margin is not None and dec.margin < cfg.types.low_margin) or bool(terms.get("glazed_near"))
-        row = {"segment": s.id, "family": dec.family, "hinge": dec.hinge, "reason": reason, "low_margin": low,
-               "handle": None if h is None else vars(h), "size": [round(x, 4) for x in fr.size],
-               "front": fr.to_json(), **info, **terms}
-        report.append(row)
-        if dec.family == "fixed":
-            continue
-        pid = f"{dec.family}_{counts.get(dec.family, 0)}"
-        counts[dec.family] = counts.get(dec.family, 0) + 1
-        extra = {"family": dec.family, "segment": s.id}
-        if h is not None:  # the twin's handle primitive and grasp frame (drawer_lib/complete/grasp.py)
-            extra["handle"] = {"a_u": round(h.a_u, 4), "a_v": round(h.a_v, 4), "orientation": h.orientation,
-                               "size": None if h.size is None else list(h.size), "source": h.source}
-        if dec.confidence is not None:
-            extra |= {"confidence": round(dec.confidence, 4), "low_margin": low}
-            if dec.margin is not None:
-                extra["margin"] = round(dec.margin, 4)
-        pair = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
-        side = (slide_side(fr, mesh_pts, h, cfg.joints,
-                           rail_run(fr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside))
-                if dec.family == "sliding" and pair is None else None)
-        joint_front, tilt = plumb(fr, cfg.fronts.plumb_deg)  # the evidence above read the fitted plane
-        row |= {"tilt_deg": round(tilt, 3), "plumbed": joint_front is not fr}
-        parts.append(make_part(pid, dec, joint_front, cfg.joints, extra, carcass if dec.family == "drawer" else None,
-                               pair, side))
-        row["part"] = pid
+        pair = (pair_of_doors(h, fr.size, terms["excluded"], cfg.types)
+                if "excluded" in terms and k not in partner else None)
+        if pair is None:
+            pieces = [(fr, dec, h, None)]
+        else:  # two doors meeting at the middle, each hinged on its outer edge; the whole front's evidence stays
+            why, near = pair
+            pieces = [(half, Decision("door", side, f"{why}; as one front: {dec.reason}"), half_handle(h, side),
+                       {"side": side, "pull_off_middle": round(abs(h.a_u - 0.5), 4), "width": round(fr.size[0], 4),
+                        "near": near, "as_one": dec.family + (f"_{dec.hinge}" if dec.hinge else "")})
+                      for side, half in zip(("left", "right"), cut_u(fr, 0.5))]
+        for pfr, pdec, ph, pair_row in pieces:
+            reason = pdec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
+            low = ((pdec.margin is not None and pdec.margin < cfg.types.low_margin) or bool(terms.get("glazed_near"))
+                   or bool(pair_row and pair_row["near"]))
+            row = {"segment": s.id, "family": pdec.family, "hinge": pdec.hinge, "reason": reason, "low_margin": low,
+                   "handle": None if ph is None else vars(ph), "size": [round(x, 4) for x in pfr.size],
+                   "front": pfr.to_json(), **info, **terms}
+            if pair_row is not None:
+                row["pair"] = pair_row
+            report.append(row)
+            if pdec.family == "fixed":
+                continue
+            pid = f"{pdec.family}_{counts.get(pdec.family, 0)}"
+            counts[pdec.family] = counts.get(pdec.family, 0) + 1
+            extra = {"family": pdec.family, "segment": s.id}
+            if ph is not None:  # the twin's handle primitive and grasp frame (drawer_lib/complete/grasp.py)
+                extra["handle"] = {"a_u": round(ph.a_u, 4), "a_v": round(ph.a_v, 4), "orientation": ph.orientation,
+                                   "size": None if ph.size is None else list(ph.size), "source": ph.source}
+            if pdec.confidence is not None:
+                extra |= {"confidence": round(pdec.confidence, 4), "low_margin": low}
+                if pdec.margin is not None:
+                    extra["margin"] = round(pdec.margin, 4)
+            elif pair_row is not None:
+                extra["low_margin"] = low
+            pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
+            side = (slide_side(pfr, mesh_pts, ph, cfg.joints,
+                               rail_run(pfr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside))
+                    if pdec.family == "sliding" and pair_front is None else None)
+            joint_front, tilt = plumb(pfr, cfg.fronts.plumb_deg)  # the evidence above read the fitted plane
+            row |= {"tilt_deg": round(tilt, 3), "plumbed": joint_front is not pfr}
+            parts.append(make_part(pid, pdec, joint_front, cfg.joints, extra,
+                                   carcass if pdec.family == "drawer" else None, pair_front, side))
+            row["part"] = pid
     return parts, report
 
 

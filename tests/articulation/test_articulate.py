@@ -34,12 +34,13 @@ def box(lo, hi) -> trimesh.Trimesh:
 
 
 def scene(handle: str | None):
-    """(mesh, face ids of the front's outer face). ``handle``: center | right | bottom | top | None."""
+    """(mesh, face ids of the front's outer face). ``handle``: center | right | bottom | top | None,
+    or middle: a vertical bar 2 cm right of the middle (where a pair of doors meets)."""
     panel = box([X0, Y, Z0], [X1, Y + 0.019, Z1]).subdivide().subdivide().subdivide()
     wall = box([-0.5, 0.0, 0.0], [1.0, 0.02, 1.2])  # the wall behind: 0.6 m carcass depth
     parts = [panel, wall]
     hc = {"center": (0.25, 0.45, "h"), "top": (0.25, 0.74, "h"), "right": (0.455, 0.7, "v"),
-          "bottom": (0.25, 0.16, "h")}.get(handle)
+          "bottom": (0.25, 0.16, "h"), "middle": (0.27, 0.45, "v")}.get(handle)
     if hc is not None:
         x, z, along = hc
         half = (0.08, 0.006) if along == "h" else (0.006, 0.08)
@@ -95,6 +96,59 @@ def test_door_with_handle_on_the_right_is_hinged_left():
     free = np.array([[X1, Y, 0.45]])
     moved = apply_transform(joint_transform("revolute", np.array(p.axis.origin), np.array(p.axis.direction), 0.1), free)
     assert moved[0, 1] < Y - 0.01
+
+
+def opens_outward(p) -> bool:
+    """Whether opening ``p`` by a small angle moves its front's far corners toward the cameras (-y)."""
+    from drawer_lib.geometry.joints import apply_transform, joint_transform
+
+    corners = p.front.corners()
+    moved = apply_transform(joint_transform("revolute", np.array(p.axis.origin), np.array(p.axis.direction), 0.1),
+                            corners)
+    return bool((moved[:, 1] <= corners[:, 1] + 1e-9).all() and (moved[:, 1] < Y - 0.01).any())
+
+
+PAIR = ArticulateConfig(types=TypesConfig(pair_pull=0.1, pair_min_width=0.2))
+
+
+def test_a_vertical_pull_at_the_middle_of_a_front_makes_a_pair_of_doors():
+    """Two doors a detector joined into one front, read off the pull at its middle
+    (``types.pair_pull``): each half a door hinged on its outer edge, opening outward; the pull
+    goes to the half it lies on; both rows record the pair and the whole front's decision."""
+    (_one,), _ = run("middle", cfg=ArticulateConfig(types=TypesConfig(pair_pull=0.0)))  # off: one front
+    parts, rep = run("middle", cfg=PAIR)
+    assert [p.extra["family"] for p in parts] == ["door", "door"]
+    left, right = sorted(parts, key=lambda p: p.front.center[0])
+    assert left.extra["hinge"] == "left" and right.extra["hinge"] == "right"
+    assert np.allclose(left.axis.origin[0], X0, atol=0.015) and np.allclose(right.axis.origin[0], X1, atol=0.015)
+    for p, cx in ((left, 0.125), (right, 0.375)):
+        assert np.allclose(p.front.size, [0.25, 0.7], atol=0.02) and np.allclose(p.front.center[0], cx, atol=0.01)
+        assert opens_outward(p)
+    assert "handle" not in left.extra and right.extra["handle"]["a_u"] == pytest.approx(0.08, abs=0.03)
+    rows = [r for r in rep if r.get("part")]
+    assert [r["pair"]["side"] for r in rows] == ["left", "right"]
+    assert all(r["pair"]["width"] == pytest.approx(0.5, abs=0.02) and not r["pair"]["near"] for r in rows)
+    assert all("a pair of doors" in r["reason"] and r["low_margin"] is False for r in rows)
+    assert rows[0]["features"] == rows[1]["features"]  # the whole front's evidence
+
+
+@pytest.mark.parametrize("handle, types", [
+    ("center", TypesConfig(pair_pull=0.1, pair_min_width=0.2)),    # a horizontal bar there is a drawer's or a flap's
+    ("right", TypesConfig(pair_pull=0.1, pair_min_width=0.2)),     # a pull at an edge is one door's
+    ("middle", TypesConfig(pair_pull=0.1, pair_min_width=0.3)),    # too narrow for two doors
+    ("middle", TypesConfig(pair_pull=0.01, pair_min_width=0.2)),   # the pull is 0.04 of the width off the middle
+    ("middle", TypesConfig(pair_pull=0.1, pair_min_width=0.2, hinged_min_height=0.8)),  # no room for hinges
+])
+def test_a_front_stays_one_unless_its_pull_says_pair(handle, types):
+    parts, rep = run(handle, cfg=ArticulateConfig(types=types))
+    assert len(parts) == 1 and not any("pair" in r for r in rep)
+
+
+def test_a_pair_decided_near_its_bounds_is_marked():
+    """A width within 2 cm of 2 x ``pair_min_width`` could be decided otherwise elsewhere: low_margin."""
+    parts, rep = run("middle", cfg=ArticulateConfig(types=TypesConfig(pair_pull=0.1, pair_min_width=0.245)))
+    assert len(parts) == 2 and all(p.extra["low_margin"] for p in parts)
+    assert all(r["pair"]["near"] and r["low_margin"] for r in rep if r.get("part"))
 
 
 def test_flap_with_handle_at_the_bottom_is_hinged_at_the_top():

@@ -333,3 +333,62 @@ def test_a_glazed_decision_near_its_thresholds_is_marked():
     assert not glazed_near(ev, dataclasses.replace(types, window_contrast=None), 0.75)
     assert decide_by_score(ev, types, PRIOR)[1]["glazed_near"] is False
     assert decide_by_score(dataclasses.replace(ev, window=0.16), types, PRIOR)[1]["glazed_near"] is True
+
+
+def test_pair_of_doors_needs_a_vertical_pull_near_the_middle_room_and_both_doors():
+    from drawer_lib.articulation.decide import pair_of_doors
+
+    cfg = TypesConfig(pair_pull=0.1, pair_min_width=0.25)
+    v = Handle(0.55, 0.5, "vertical", 50, "images")
+    why, near = pair_of_doors(v, (0.8, 0.7), {}, cfg)
+    assert "pair of doors" in why and near is False
+    assert pair_of_doors(v, (0.8, 0.7), {}, TypesConfig(pair_pull=0.0)) is None  # off
+    assert pair_of_doors(None, (0.8, 0.7), {}, cfg) is None
+    for o in ("horizontal", "round"):
+        assert pair_of_doors(dataclasses.replace(v, orientation=o), (0.8, 0.7), {}, cfg) is None
+    assert pair_of_doors(dataclasses.replace(v, a_u=0.61), (0.8, 0.7), {}, cfg) is None
+    assert pair_of_doors(dataclasses.replace(v, a_u=0.39), (0.8, 0.7), {}, cfg) is None
+    assert pair_of_doors(v, (0.49, 0.7), {}, cfg) is None
+    assert pair_of_doors(v, (0.8, 0.7), {"door_right": "blocked"}, cfg) is None
+    assert pair_of_doors(v, (0.8, 0.7), {"sliding": "no track", "drawer": "a window"}, cfg) is not None
+    # within 0.02 of a bound (of the width, or m): a decision another machine could make otherwise
+    assert pair_of_doors(dataclasses.replace(v, a_u=0.59), (0.8, 0.7), {}, cfg)[1] is True
+    assert pair_of_doors(v, (0.51, 0.7), {}, cfg)[1] is True
+    assert pair_of_doors(v, (0.53, 0.7), {}, cfg)[1] is False
+
+
+def test_a_pull_cut_at_the_middle_goes_to_its_half():
+    from drawer_lib.articulation.decide import half_handle
+
+    h = Handle(0.55, 0.3, "vertical", 50, "images", (0.02, 0.15))
+    assert half_handle(h, "left") is None
+    r = half_handle(h, "right")
+    assert r.a_u == pytest.approx(0.1) and r.a_v == 0.3 and r.size == h.size and r.source == "images"
+    assert half_handle(dataclasses.replace(h, a_u=0.5), "left").a_u == pytest.approx(1.0)
+    assert half_handle(dataclasses.replace(h, a_u=0.0), "left").a_u == 0.0
+    assert half_handle(dataclasses.replace(h, a_u=1.0), "right").a_u == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("t", [0.5, 0.3, 1e-6, 1 - 1e-6])
+def test_a_front_cut_across_u_keeps_its_plane_and_its_width(t):
+    from drawer_lib.articulation.fronts import cut_u
+
+    s = 1 / np.sqrt(2)
+    f = Front((2.0, 1.0, 0.9), (s, -s, 0.0), (s, s, 0.0), (1.2, 0.7))
+    a, b = cut_u(f, t)
+    assert a.size[0] + b.size[0] == pytest.approx(1.2) and a.size[1] == b.size[1] == 0.7
+    assert a.size[0] == pytest.approx(1.2 * t)
+    assert a.normal == b.normal == f.normal and a.u == b.u == f.u
+    # the outer corners are the front's, and the pieces meet
+    assert np.allclose(a.corners()[[0, 3]], f.corners()[[0, 3]]) and np.allclose(b.corners()[[1, 2]], f.corners()[[1, 2]])
+    assert np.allclose(a.corners()[[1, 2]], b.corners()[[0, 3]])
+    for bad in (0.0, 1.0, -0.2, float("nan")):
+        with pytest.raises(ValueError, match="cut_u"):
+            cut_u(f, bad)
+
+
+@pytest.mark.parametrize("key, value", [("pair_pull", -0.1), ("pair_pull", 0.5), ("pair_min_width", 0.0),
+                                        ("pair_min_width", float("nan"))])
+def test_the_pair_rule_keys_are_checked(key, value):
+    with pytest.raises(ConfigError, match=f"articulate.types.{key}"):
+        TypesConfig(**{key: value})
