@@ -266,15 +266,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = decide_by_handle(h, s.labels, cfg.types)
         pair = (pair_of_doors(h, fr.size, terms["excluded"], cfg.types)
                 if "excluded" in terms and k not in partner else None)
-        if pair is None:
-            pieces = [(fr, dec, h, None)]
-        else:  # two doors meeting at the middle, each hinged on its outer edge; the whole front's evidence stays
-            why, near = pair
-            pieces = [(half, Decision("door", side, f"{why}; as one front: {dec.reason}"), half_handle(h, side),
-                       {"side": side, "pull_off_middle": round(abs(h.a_u - 0.5), 4), "width": round(fr.size[0], 4),
-                        "near": near, "as_one": dec.family + (f"_{dec.hinge}" if dec.hinge else "")})
-                      for side, half in zip(("left", "right"), cut_u(fr, 0.5))]
-        for pfr, pdec, ph, pair_row in pieces:
+        for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
             reason = pdec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
             low = ((pdec.margin is not None and pdec.margin < cfg.types.low_margin) or bool(terms.get("glazed_near"))
                    or bool(pair_row and pair_row["near"]))
@@ -308,6 +300,22 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                                    carcass if pdec.family == "drawer" else None, pair_front, side))
             row["part"] = pid
     return parts, report
+
+
+def door_pair(front: Front, dec: Decision, h: Handle | None, pair: tuple[str, bool] | None
+              ) -> list[tuple[Front, Decision, Handle | None, dict | None]]:
+    """What a front becomes: [(front, decision, handle, None)] as decided, or with ``pair`` =
+    (why, near) from :func:`~drawer_lib.articulation.decide.pair_of_doors` its two halves, each a
+    door hinged on its outer edge with the pull if it lies on that half, and the ``pair`` record
+    of ``decisions.json`` (``as_one``: what the whole front was decided)."""
+    if pair is None:
+        return [(front, dec, h, None)]
+    why, near = pair
+    as_one = dec.family + (f"_{dec.hinge}" if dec.hinge else "")
+    return [(half, Decision("door", side, f"{why}; as one front: {dec.reason}"), half_handle(h, side),
+             {"side": side, "pull_off_middle": round(abs(h.a_u - 0.5), 4), "width": round(front.size[0], 4),
+              "near": near, "as_one": as_one})
+            for side, half in zip(("left", "right"), cut_u(front, 0.5))]
 
 
 def gave_reasons(gave_up: list[tuple[int, int, str]], k: int, seg_ids: list[int]) -> str:

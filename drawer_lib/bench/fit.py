@@ -69,14 +69,15 @@ def gt_label(front: Front, gt: PartsFile) -> str | None:
 
 def labelled_fronts(kitchen: str, decisions: Path, gt: PartsFile) -> list[Row]:
     """The fronts of one kitchen's ``decisions.json`` that carry features, with their GT label
-    (fronts without a label left out)."""
+    (fronts without a label left out, and the doors of a front read as a pair: their rows carry
+    the whole front's features, which the pair rule typed, not the scores)."""
     try:
         segs = json.loads(Path(decisions).read_text())["segments"]
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise InputError(f"{decisions}: not an articulation decisions file ({e})") from None
     rows = []
     for r in segs:
-        if "features" not in r:
+        if "features" not in r or "pair" in r:
             continue
         lab = gt_label(Front.from_json(r["front"], f"{decisions}: segment {r.get('segment')} front"), gt)
         if lab is not None:

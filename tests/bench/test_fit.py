@@ -182,7 +182,9 @@ def test_labelled_fronts_read_decisions_and_skip_what_has_no_label(tmp_path):
     segs = [{"segment": 0, "front": front(0.25, 0.45).to_json(), "features": f0, "door_features": d0},
             {"segment": 1, "front": front(3.25, 0.45).to_json(), "features": f0, "door_features": d0},  # ignored
             {"segment": 2, "front": front(5.0, 0.45).to_json(), "features": f0, "door_features": d0},  # no part
-            {"segment": 3, "front": front(1.0, 0.45).to_json(), "family": "fixed"}]  # no features
+            {"segment": 3, "front": front(1.0, 0.45).to_json(), "family": "fixed"},  # no features
+            {"segment": 4, "front": front(0.25, 0.45).to_json(), "features": f0, "door_features": d0,
+             "pair": {"side": "left"}}]  # a door of a pair: the whole front's features, not its own
     p = tmp_path / "decisions.json"
     p.write_text(json.dumps({"estimator": "geometric", "segments": segs}))
     rows = fd.labelled_fronts("k7", p, gt)
