@@ -260,8 +260,12 @@ def _step_fit(x: np.ndarray, m: np.ndarray, k: int) -> tuple[float, float, float
     return float(coef[2]), float(coef[1]), float(r @ r)
 
 
+STEP_BAND = 0.001  # m: a depth step whose tests clear or miss their bounds by less than this is a cut near them
+
+
 def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, float], min_piece: float,
-                    bin_m: float = 0.02, max_depth: int = 2, log: list | None = None) -> list[Front]:
+                    bin_m: float = 0.02, max_depth: int = 2, log: list | None = None,
+                    near: list | None = None) -> list[Front]:
     """``front`` cut where the surface under it steps back or forward along u by a sliding
     door's track offset: two panels on two tracks that the detector merged in every view give
     one segment, one plane between them and one rectangle over both, but the mesh still shows
@@ -279,7 +283,11 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
     up to ``max_depth``. Pieces keep the front's axes and take their own plane offset (the
     median of their points). ``[front]`` without a step. ``log`` (a list) receives each cut's
     evidence (position along u, step, residual RMS, the least step over the thirds; m), so
-    ``decisions.json`` shows how far each test cleared its threshold."""
+    ``decisions.json`` shows how far each test cleared its threshold, and its ``margin``: the
+    least of those clearances (m). ``near`` (a list) receives the best step of each piece, cut or
+    not, whose margin lies within :data:`STEP_BAND` of 0 (``made``, ``at_u``, ``margin``, m): a
+    mesh that moves by its last bits (another machine, SDF seed or thread count) could decide
+    that cut the other way."""
     c, u, n = np.asarray(front.center), np.asarray(front.u), np.asarray(front.normal)
     w, h = front.size
     pu, pv, pn = front_coords(front, points).T
@@ -298,9 +306,10 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
         best = min(((k, *_step_fit(x, m, k)) for k in range(2, len(x) - 1)), key=lambda t: t[3])
         k, step, slope, sse = best
         at = 0.5 * (x[k - 1] + x[k])
-        if not (step_range[0] <= abs(step) <= step_range[1] and min(at - a, b - at) >= min_piece
-                and np.sqrt(sse / len(x)) <= abs(step) / 4):
-            return [(a, b)]
+        rms = float(np.sqrt(sse / len(x)))
+        # each test's clearance (m; < 0: failed): the step's size, the pieces' widths, the residual
+        clear = [abs(step) - step_range[0], step_range[1] - abs(step), min(at - a, b - at) - min_piece,
+                 abs(step) / 4 - rms]
         flat = n_all - slope * x_all  # the yaw taken out
         least = abs(step)
         for t0, t1 in ((-h / 2, -h / 6), (-h / 6, h / 6), (h / 6, h / 2)):
@@ -308,12 +317,18 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
             lo, hi = flat[in_t & (x_all < at)], flat[in_t & (x_all >= at)]
             if len(lo) >= 5 and len(hi) >= 5:
                 st = float(np.median(hi) - np.median(lo))
-                if np.sign(st) != np.sign(step) or abs(st) < step_range[0] / 2:
-                    return [(a, b)]
+                signed = st * np.sign(step)  # along the step: > 0 when this third steps the same way
+                clear.append(signed - step_range[0] / 2)
                 least = min(least, abs(st))
+        margin = float(min(clear))
+        made = margin >= 0
+        if near is not None and abs(margin) < STEP_BAND:
+            near.append({"cut": "depth_step", "made": made, "at_u": round(float(at), 4), "margin": round(margin, 4)})
+        if not made:
+            return [(a, b)]
         if log is not None:
             log.append({"cut": "depth_step", "at_u": round(float(at), 4), "step": round(step, 4),
-                        "rms": round(float(np.sqrt(sse / len(x))), 4), "least_third": round(least, 4)})
+                        "rms": round(rms, 4), "least_third": round(least, 4), "margin": round(margin, 4)})
         return cut(a, at, depth - 1) + cut(at, b, depth - 1)
 
     spans = cut(-w / 2, w / 2, max_depth)

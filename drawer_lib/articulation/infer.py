@@ -57,7 +57,9 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     merged in most views) gives each of them, its info ``piece`` k ``of`` n. Then, from the mesh
     alone, each rectangle is cut where the surface steps by a sliding track's offset
     (``cfg.split.depth_steps``) and where the segment's outline steps (``extent_steps``), the
-    evidence in the info's ``mesh_cuts``. A planar segment whose label votes are mostly no front
+    evidence in the info's ``mesh_cuts`` (and a depth step cut or left by less than
+    :data:`~drawer_lib.articulation.gaps.STEP_BAND` in ``near_cuts``: its fronts are marked
+    ``low_margin``). A planar segment whose label votes are mostly no front
     label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part.
     Last, coplanar neighbours share their edges (:func:`~drawer_lib.articulation.fronts.share_edges`,
     on each front's own face centres); a side that moved in by more than half of
@@ -92,11 +94,13 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
             rf = rectify_front(front, views, cfg.rectify, np.array([v.stem in stems for v in views]))
             pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views, log=even)
         cuts: list[dict] = []  # the evidence of the mesh's cuts
+        near_cuts: list[dict] = []  # depth steps cut or not by a margin another machine's mesh could undo
         if cfg.split.depth_steps or cfg.split.extent_steps:
             pts, _ = sample_points(mesh, s.faces, fc.sample_per_m2, seed=0)
             if cfg.split.depth_steps:
                 pieces = [q for p in pieces for q in depth_step_cuts(p, pts, tuple(cfg.joints.sliding_step),
-                                                                       cfg.split.min_piece, cfg.split.depth_bin, log=cuts)]
+                                                                       cfg.split.min_piece, cfg.split.depth_bin, log=cuts,
+                                                                       near=near_cuts)]
             if cfg.split.extent_steps:
                 pieces = [q for p in pieces for q in extent_step_cuts(p, pts, centres, owner, s.id, cfg.split.extent_min_step,
                                                                         cfg.split.min_piece, cfg.split.depth_bin, log=cuts)]
@@ -108,7 +112,8 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                 report.append({"segment": s.id, "family": "none", "reason": f"size {w:.2f} x {h:.2f} m out of range"})
                 continue
             info = ({"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
-                    | ({"mesh_cuts": cuts} if cuts else {}) | too_wide | ({"even_pieces": even} if even else {}))
+                    | ({"mesh_cuts": cuts} if cuts else {}) | ({"near_cuts": near_cuts} if near_cuts else {})
+                    | too_wide | ({"even_pieces": even} if even else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     plane_tol = 0.75 * cfg.joints.sliding_step[0]  # coplanar: closer than the nearest sliding track
@@ -269,7 +274,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
             reason = pdec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
             low = ((pdec.margin is not None and pdec.margin < cfg.types.low_margin) or bool(terms.get("glazed_near"))
-                   or bool(pair_row and pair_row["near"]))
+                   or bool(pair_row and pair_row["near"]) or bool(info.get("near_cuts")))
             row = {"segment": s.id, "family": pdec.family, "hinge": pdec.hinge, "reason": reason, "low_margin": low,
                    "handle": None if ph is None else vars(ph), "size": [round(x, 4) for x in pfr.size],
                    "front": pfr.to_json(), **info, **terms}

@@ -276,6 +276,31 @@ def test_what_is_not_a_track_offset_does_not_cut(case):
     assert len(_cut(pts)) == 1
 
 
+def test_a_depth_step_cut_records_its_margin_and_one_near_its_bounds_is_reported():
+    """Each cut's ``margin`` is the least clearance of its tests (m); a step whose margin lies
+    within STEP_BAND of 0, cut or not, goes to ``near``: a mesh moved by its last bits could
+    decide it the other way. A clear track offset is not near; a flat front has no step near."""
+    from drawer_lib.articulation.gaps import STEP_BAND
+
+    rng = np.random.default_rng(5)
+    log, near = [], []
+    assert len(_cut(_panel_points(rng, [(-0.5, 0.01, 0.022), (0.01, 0.5, 0.0)]), log=log, near=near)) == 2
+    (c,) = log
+    assert c["margin"] == pytest.approx(min(abs(c["step"]) - 0.008, c["least_third"] - 0.004,
+                                            abs(c["step"]) / 4 - c["rms"]), abs=2e-4)
+    assert c["margin"] > STEP_BAND and near == []
+    for off, made in ((0.0085, True), (0.0075, False)):  # half a millimetre either side of the 8 mm bound
+        log, near = [], []
+        pieces = _cut(_panel_points(np.random.default_rng(6), [(-0.5, 0.01, off), (0.01, 0.5, 0.0)], noise=0.0003),
+                      log=log, near=near)
+        assert len(pieces) == (2 if made else 1) and len(log) == int(made)
+        (n,) = near
+        assert n["made"] is made and abs(n["margin"]) < STEP_BAND and n["at_u"] == pytest.approx(0.0, abs=0.03)
+    near = []
+    _cut(_panel_points(rng, [(-0.5, 0.5, 0.0)], noise=0.0003), near=near)
+    assert near == []
+
+
 def test_depth_steps_degenerate_input():
     f = _front()
     assert _cut(np.zeros((0, 3)), f) == [f]
