@@ -103,6 +103,22 @@ def plumb(front: Front, max_deg: float) -> tuple[Front, float]:
     return Front(front.center, tuple(h.tolist()), tuple(u.tolist()), front.size), tilt
 
 
+def sub_front(front: Front, u0: float, u1: float, v0: float | None = None, v1: float | None = None,
+              offset: float | None = None) -> Front:
+    """The rectangle of ``front`` over u0..u1 and v0..v1 (m from its centre along its u and v;
+    v None: its whole height), in its plane and axes, moved ``offset`` m along its normal when
+    given: a piece of a front that a cut, the masks or a step made."""
+    c, u = np.asarray(front.center), np.asarray(front.u)
+    centre = c + 0.5 * (u0 + u1) * u
+    h = front.size[1]
+    if v0 is not None:
+        centre = centre + 0.5 * (v0 + v1) * front.v
+        h = v1 - v0
+    if offset is not None:
+        centre = centre + offset * np.asarray(front.normal)
+    return Front(tuple(centre.tolist()), front.normal, front.u, (float(u1 - u0), float(h)))
+
+
 def cut_u(front: Front, t: float) -> tuple[Front, Front]:
     """``front`` cut across u at ``t`` (0 < t < 1, the cut's place as a fraction of the width
     from the -u side): (the -u piece, the +u piece), each in the front's plane and axes, of the
@@ -114,14 +130,9 @@ def cut_u(front: Front, t: float) -> tuple[Front, Front]:
     """
     if not 0 < t < 1:
         raise ValueError(f"cut_u: t = {t} must be in (0, 1)")
-    w, h = front.size
-    c, u = np.asarray(front.center, float), np.asarray(front.u, float)
+    w = front.size[0]
     at = (t - 0.5) * w  # the cut's u offset from the centre
-    pieces = []
-    for lo, hi in ((-w / 2, at), (at, w / 2)):
-        center = c + 0.5 * (lo + hi) * u
-        pieces.append(Front(tuple(center.tolist()), front.normal, front.u, (float(hi - lo), float(h))))
-    return pieces[0], pieces[1]
+    return sub_front(front, -w / 2, at), sub_front(front, at, w / 2)
 
 
 def mask_uv(front: Front, mask: np.ndarray, cam: Camera, border_px: int, min_pixels: int
@@ -154,8 +165,6 @@ def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg:
     do not touch the image border (a mask cut by the frame says nothing about that edge). A side
     with fewer than ``mask_min_frames`` such masks keeps the mesh fit. ``masks``: [(bool mask
     [H, W], the camera that saw it)]. Returns (front, masks used)."""
-    c, u = np.asarray(front.center), np.asarray(front.u)
-    v = front.v
     hw, hh = front.size[0] / 2, front.size[1] / 2
     sides: list[list[float]] = [[], [], [], []]  # lo_u, lo_v, hi_u, hi_v
     used = 0
@@ -181,8 +190,7 @@ def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg:
     lo_u, lo_v, hi_u, hi_v = ext
     if hi_u <= lo_u or hi_v <= lo_v:
         return front, 0
-    center = c + (lo_u + hi_u) / 2 * u + (lo_v + hi_v) / 2 * v
-    return Front(tuple(center.tolist()), front.normal, front.u, (float(hi_u - lo_u), float(hi_v - lo_v))), used
+    return sub_front(front, lo_u, hi_u, lo_v, hi_v), used
 
 
 def abutting_edges(a: Front, b: Front, max_gap: float, plane_tol: float, min_overlap: float = 0.5,

@@ -33,6 +33,7 @@ Shapes: grids are [Gv, Gu], v bottom -> top, u left -> right.
 import numpy as np
 
 from drawer_lib.articulation.config import SplitConfig
+from drawer_lib.articulation.fronts import sub_front
 from drawer_lib.articulation.interaction import front_coords
 from drawer_lib.articulation.rectify import RectifiedFront
 from drawer_lib.io.parts import Front
@@ -225,15 +226,10 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
         log.extend({"even_pieces": n, "width": round(cells * rf.res, 4)} for n, cells in even)
     if len(pieces) == 1:
         return [front]
-    c, u, v, res = np.asarray(front.center), np.asarray(front.u), front.v, rf.res
+    res = rf.res
     u_lo, v_lo = uu[0, cols[0]] - res / 2, vv[rows[0], 0] - res / 2
-    out = []
-    for a0, a1, b0, b1 in pieces:
-        pu0, pu1 = max(u_lo + a0 * res, -w / 2), min(u_lo + a1 * res, w / 2)
-        pv0, pv1 = max(v_lo + b0 * res, -h / 2), min(v_lo + b1 * res, h / 2)
-        center = c + 0.5 * (pu0 + pu1) * u + 0.5 * (pv0 + pv1) * v
-        out.append(Front(tuple(center.tolist()), front.normal, front.u, (float(pu1 - pu0), float(pv1 - pv0))))
-    return out
+    return [sub_front(front, max(u_lo + a0 * res, -w / 2), min(u_lo + a1 * res, w / 2),
+                      max(v_lo + b0 * res, -h / 2), min(v_lo + b1 * res, h / 2)) for a0, a1, b0, b1 in pieces]
 
 
 def _binned(x: np.ndarray, values: np.ndarray, a: float, b: float, bin_m: float, min_count: int,
@@ -288,7 +284,6 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
     not, whose margin lies within :data:`STEP_BAND` of 0 (``made``, ``at_u``, ``margin``, m): a
     mesh that moves by its last bits (another machine, SDF seed or thread count) could decide
     that cut the other way."""
-    c, u, n = np.asarray(front.center), np.asarray(front.u), np.asarray(front.normal)
     w, h = front.size
     pu, pv, pn = front_coords(front, points).T
     ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= step_range[1] + 0.02) & np.isfinite(pn)
@@ -337,9 +332,7 @@ def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, f
     out = []
     for a, b in spans:
         sel = (pu >= a) & (pu < b)
-        off = float(np.median(pn[sel])) if sel.any() else 0.0
-        centre = c + 0.5 * (a + b) * u + off * n
-        out.append(Front(tuple(centre.tolist()), front.normal, front.u, (float(b - a), float(h))))
+        out.append(sub_front(front, a, b, offset=float(np.median(pn[sel])) if sel.any() else 0.0))
     return out
 
 
@@ -380,7 +373,6 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
     and their own points' height (clipped to the front's); each side is cut again up to
     ``max_depth``. ``[front]`` otherwise. ``log`` (a list) receives each cut's evidence (which
     outline, position along u, step, spread (m), the notch's share of other surfaces)."""
-    c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
     w, h = front.size
     pu, pv, pn = front_coords(front, points).T
     ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= 0.05)
@@ -428,12 +420,7 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
     spans = cut(-w / 2, w / 2, max_depth)
     if len(spans) == 1:
         return [front]
-    out = []
-    for a, b in spans:
-        v0, v1 = height(a, b)
-        centre = c + 0.5 * (a + b) * u + 0.5 * (v0 + v1) * v
-        out.append(Front(tuple(centre.tolist()), front.normal, front.u, (float(b - a), float(v1 - v0))))
-    return out
+    return [sub_front(front, a, b, *height(a, b)) for a, b in spans]
 
 
 SIDES = ("left", "right", "bottom", "top")

@@ -271,10 +271,13 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
             dec = decide_by_handle(h, s.labels, cfg.types)
         pair = (pair_of_doors(h, fr.size, terms["excluded"], cfg.types)
                 if "excluded" in terms and k not in partner else None)
+        gave = gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
+        near = bool(terms.get("glazed_near")) or bool(info.get("near_cuts"))  # a threshold another machine could cross
+        pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
-            reason = pdec.reason + gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
-            low = ((pdec.margin is not None and pdec.margin < cfg.types.low_margin) or bool(terms.get("glazed_near"))
-                   or bool(pair_row and pair_row["near"]) or bool(info.get("near_cuts")))
+            reason = pdec.reason + gave
+            low = ((pdec.margin is not None and pdec.margin < cfg.types.low_margin) or near
+                   or bool(pair_row and pair_row["near"]))
             row = {"segment": s.id, "family": pdec.family, "hinge": pdec.hinge, "reason": reason, "low_margin": low,
                    "handle": None if ph is None else vars(ph), "size": [round(x, 4) for x in pfr.size],
                    "front": pfr.to_json(), **info, **terms}
@@ -295,7 +298,6 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                     extra["margin"] = round(pdec.margin, 4)
             elif pair_row is not None:
                 extra["low_margin"] = low
-            pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
             side = (slide_side(pfr, mesh_pts, ph, cfg.joints,
                                rail_run(pfr, mesh_pts, pt_normal, inside=cfg.joints.rail_inside))
                     if pdec.family == "sliding" and pair_front is None else None)
