@@ -89,18 +89,25 @@ def _span_coverage(lines: np.ndarray, parts: int = 3) -> np.ndarray:
 
 def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarray, lo: int, hi: int, a0: int,
               a1: int, min_cells: int, coverage: float, coverage_handles: float,
-              several: bool = False) -> tuple[int, float]:
+              several: bool = False) -> tuple[int, float, tuple[int, float, float] | None]:
     """The best cut along axis 1 of the line maps [A, B] ``lines`` = (strong mask boundaries,
     weak ones, image lines) between columns lo + ``min_cells`` and hi - ``min_cells``, over rows
-    a0..a1: (column, coverage) or (-1, 0). A column qualifies when its strong boundary cells
+    a0..a1: (column, coverage, clearance) or (-1, 0, clearance). A column qualifies when its strong boundary cells
     cover ``coverage`` of each third of the rows (:func:`_span_coverage`), or, with handle cells
     on both sides of it, its weak boundary or image line cells cover ``coverage_handles`` (a
     tile joint, a grain line or the end of a false detection has no handle on either side); no
     column through a handle. ``several``: the piece is known to hold several fronts (too wide
     to be one), so the weak kinds need no handles either side; with ``coverage_handles`` 0 any
-    column with a line cell in each third qualifies (the best-covered wins)."""
+    column with a line cell in each third qualifies (the best-covered wins).
+
+    The clearance (column, margin, band), with ``coverage_handles`` > 0: ``margin`` is the
+    largest clearance of the coverage tests over the columns a cut may take (a share of a third
+    of the rows; >= 0 exactly when some column qualifies), at that column; ``band`` is one
+    cell of the shortest third, so a cut with a margin under one band, or missing by one band
+    at most, is one that a cell seen the other way could undo or make. None when no column may
+    take a cut, or with ``coverage_handles`` 0."""
     if hi - lo < 2 * min_cells or a1 <= a0:
-        return -1, 0.0
+        return -1, 0.0, None
     strong, weak, img = (_span_coverage(x[a0:a1, lo:hi]) for x in lines)
     h = handle[a0:a1, lo:hi].any(0)
     left = np.concatenate([[False], np.cumsum(h)[:-1] > 0])  # a handle column before this one
@@ -109,18 +116,26 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
         left[:], right[:] = True, True
     aided = np.maximum(weak, img)
     weak_ok = aided > 0 if coverage_handles <= 0 else aided >= coverage_handles
-    ok = (strong >= coverage) | (weak_ok & left & right)
-    ok &= ~h
-    ok[:min_cells] = False
-    ok[len(ok) - min_cells:] = False
+    free = ~h
+    free[:min_cells] = False
+    free[len(free) - min_cells:] = False
+    clear = None
+    if coverage_handles > 0 and free.any():
+        c = np.where(free, np.maximum(strong - coverage, np.where(left & right, aided - coverage_handles, -1.0)), -np.inf)
+        i = k = int(np.argmax(c))
+        while k + 1 < len(c) and c[k + 1] == c[i]:  # the middle of a plateau, as for the cut
+            k += 1
+        band = 1.0 / min(len(x) for x in np.array_split(np.arange(a1 - a0), min(3, a1 - a0)))
+        clear = (lo + (i + k) // 2, float(c[i]), band)
+    ok = ((strong >= coverage) | (weak_ok & left & right)) & free
     if not ok.any():
-        return -1, 0.0
+        return -1, 0.0, clear
     score = np.where(ok, np.maximum(strong, aided), -1.0)
     j = int(np.argmax(score))
     k = j  # the middle of the run of equal scores (a line widened by the slack is a plateau)
     while k + 1 < len(score) and score[k + 1] == score[j]:
         k += 1
-    return lo + (j + k) // 2, float(score[j])
+    return lo + (j + k) // 2, float(score[j]), clear
 
 
 def even_cuts(u0: int, u1: int, n: int, blocked: np.ndarray | None = None) -> list[tuple[int, int]]:
@@ -146,7 +161,7 @@ def even_cuts(u0: int, u1: int, n: int, blocked: np.ndarray | None = None) -> li
 def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], handle: np.ndarray,
             piece: Piece, coverage: float, coverage_handles: float, min_cells: int, max_depth: int,
             wide_cells: int = 0, wide_min_cells: int = 1, even_cells: float = 0.0,
-            log: list[tuple[int, int]] | None = None) -> list[Piece]:
+            log: list[tuple[int, int]] | None = None, near: list[dict] | None = None) -> list[Piece]:
     """The leaves of the recursive cut of ``piece`` (cells) at full-span gap lines (module
     docstring). ``lines_u`` = (strong mask boundaries, weak ones, image lines) across u
     (vertical lines), ``lines_v`` the same across v (horizontal lines), each bool [Gv, Gu];
@@ -158,15 +173,27 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
     ``even_cells`` (> 0, with ``wide_cells``): a piece still too wide with no such column is cut
     into max(2, round(width / ``even_cells``)) pieces of equal width (a run of modules of one
     width; a cut on a handle moves off it, :func:`even_cuts`), each cut again; ``log`` gets
-    (pieces, width in cells) for each."""
+    (pieces, width in cells) for each. ``near`` (a list) gets each decision of a piece that one
+    cell seen the other way would turn: ``{"cut": "gap_line", "axis": "u" | "v", "made", "at"
+    (cell), "margin", "band"}`` (the coverage clearance of :func:`_best_cut` within its band;
+    not the vertical lines of a piece too wide to be one, which is cut with or without one)
+    and ``{"cut": "too_wide", "made", "cells"}`` (a piece one cell from ``wide_cells``)."""
     u0, u1, v0, v1 = piece
     if max_depth <= 0:
         return [piece]
     wide = 0 < wide_cells < u1 - u0
-    ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, min_cells, coverage, coverage_handles, several=wide)
-    iv, cv = _best_cut(tuple(x.T for x in lines_v), handle.T, v0, v1, u0, u1, min_cells, coverage, coverage_handles)
+    ju, cu, clear_u = _best_cut(lines_u, handle, u0, u1, v0, v1, min_cells, coverage, coverage_handles, several=wide)
+    iv, cv, clear_v = _best_cut(tuple(x.T for x in lines_v), handle.T, v0, v1, u0, u1, min_cells, coverage,
+                                coverage_handles)
+    if near is not None:
+        if wide_cells > 0 and abs(u1 - u0 - wide_cells - 0.5) < 1:
+            near.append({"cut": "too_wide", "made": wide, "cells": u1 - u0})
+        for axis, clear in (("u", None if wide else clear_u), ("v", clear_v)):  # a wide piece is cut either way
+            if clear is not None and -1 - 1e-6 <= clear[1] / clear[2] < 1 - 1e-6:  # one cell turns it
+                near.append({"cut": "gap_line", "axis": axis, "made": clear[1] >= 0, "at": clear[0],
+                             "margin": round(clear[1], 4), "band": round(clear[2], 4)})
     if wide and ju < 0:  # too wide to be one front, and no line good enough: the best line there is
-        ju, cu = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)
+        ju, cu, _ = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)
         if ju >= 0:
             iv, cv = -1, 0.0
         elif even_cells > 0:  # no line at all: equal pieces
@@ -178,7 +205,7 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
                 log.append((len(halves), u1 - u0))
             return [leaf for h in halves
                     for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells,
-                                        max_depth - 1, wide_cells, wide_min_cells, even_cells, log)]
+                                        max_depth - 1, wide_cells, wide_min_cells, even_cells, log, near)]
     if ju < 0 and iv < 0:
         return [piece]
     if cu >= cv:
@@ -187,17 +214,22 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
         halves = [(u0, u1, v0, iv), (u0, u1, iv + 1, v1)]
     return [leaf for h in halves
             for leaf in xy_cuts(lines_u, lines_v, handle, h, coverage, coverage_handles, min_cells, max_depth - 1,
-                                wide_cells, wide_min_cells, even_cells, log)]
+                                wide_cells, wide_min_cells, even_cells, log, near)]
 
 
 def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_rate: float, handle_min_views: int,
-                log: list[dict] | None = None) -> list[Front]:
+                log: list[dict] | None = None, near: list[dict] | None = None) -> list[Front]:
     """``front`` cut at its gap lines (:func:`xy_cuts` on the rectified front ``rf``'s instance
     boundaries and mean colour inside the rectangle; cells no view saw take the front's median
     grey; handle cells: rate >= ``handle_min_rate`` over >= ``handle_min_views`` views, also
     the least views a boundary needs); ``[front]`` when no line qualifies or nothing was seen.
     Pieces keep the front's plane and axes. ``log`` gets {"even_pieces": n, "width": m} for each
-    piece too wide and without a line that was cut into ``n`` equal pieces (``cfg.wide_even``)."""
+    piece too wide and without a line that was cut into ``n`` equal pieces (``cfg.wide_even``).
+    ``near`` (a list) gets each cut made or not that one cell of the rectified front seen the
+    other way would turn (:func:`xy_cuts`): ``{"cut": "gap_line", "axis": "u" | "v", "made",
+    "at_u" | "at_v" (m, from the front's centre), "margin", "band"}`` (the coverage clearance
+    and one cell's share of a third of the span) or ``{"cut": "too_wide", "made", "width"}``
+    (m, within one cell of ``cfg.max_width``)."""
     uu, vv = rf.uv()
     w, h = front.size
     cols = np.flatnonzero(np.abs(uu[0]) <= w / 2)
@@ -219,15 +251,24 @@ def split_front(front: Front, rf: RectifiedFront, cfg: SplitConfig, handle_min_r
     min_cells = max(1, int(np.ceil(cfg.min_piece / rf.res)))
     wide_cells = int(np.floor(cfg.max_width / rf.res)) if cfg.max_width else 0
     even: list[tuple[int, int]] = []
+    flips: list[dict] = []
     pieces = xy_cuts((*maps_u, iu), (*maps_v, iv), hmap, (0, len(cols), 0, len(rows)), cfg.coverage,
                      cfg.coverage_handles, min_cells, cfg.max_depth, wide_cells,
-                     max(1, int(np.ceil(cfg.wide_min_piece / rf.res))), cfg.wide_even / rf.res, even)
-    if log is not None:
-        log.extend({"even_pieces": n, "width": round(cells * rf.res, 4)} for n, cells in even)
-    if len(pieces) == 1:
-        return [front]
+                     max(1, int(np.ceil(cfg.wide_min_piece / rf.res))), cfg.wide_even / rf.res, even, flips)
     res = rf.res
     u_lo, v_lo = uu[0, cols[0]] - res / 2, vv[rows[0], 0] - res / 2
+    if log is not None:
+        log.extend({"even_pieces": n, "width": round(cells * rf.res, 4)} for n, cells in even)
+    if near is not None:
+        for f in flips:
+            if f["cut"] == "too_wide":
+                near.append({"cut": "too_wide", "made": f["made"], "width": round(f["cells"] * res, 4)})
+            else:
+                at = float((u_lo if f["axis"] == "u" else v_lo) + (f["at"] + 0.5) * res)
+                near.append({"cut": "gap_line", "axis": f["axis"], "made": f["made"], f"at_{f['axis']}": round(at, 4),
+                             "margin": f["margin"], "band": f["band"]})
+    if len(pieces) == 1:
+        return [front]
     return [sub_front(front, max(u_lo + a0 * res, -w / 2), min(u_lo + a1 * res, w / 2),
                       max(v_lo + b0 * res, -h / 2), min(v_lo + b1 * res, h / 2)) for a0, a1, b0, b1 in pieces]
 
@@ -256,7 +297,8 @@ def _step_fit(x: np.ndarray, m: np.ndarray, k: int) -> tuple[float, float, float
     return float(coef[2]), float(coef[1]), float(r @ r)
 
 
-STEP_BAND = 0.001  # m: a depth step whose tests clear or miss their bounds by less than this is a cut near them
+STEP_BAND = 0.001  # m: a mesh cut whose length tests clear or miss their bounds by less than this is near them
+SHARE_BAND = 0.02  # an outline step's notch share of other surfaces this close to its 2/3 bound is near it
 
 
 def depth_step_cuts(front: Front, points: np.ndarray, step_range: tuple[float, float], min_piece: float,
@@ -353,7 +395,7 @@ def _change_point(x: np.ndarray, m: np.ndarray) -> tuple[int, float, float]:
 
 def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray, scene_segment: np.ndarray,
                      segment: int, min_step: float, min_piece: float, bin_m: float = 0.02, max_depth: int = 2,
-                     plane_tol: float = 0.005, log: list | None = None) -> list[Front]:
+                     plane_tol: float = 0.005, log: list | None = None, near: list | None = None) -> list[Front]:
     """``front`` cut where its segment's outline steps: a front is a rectangle, so a segment
     shaped like an L (a door merged with a shorter door or a drawer stack beside it, by a
     detector that merged them in every view) is two fronts side by side.
@@ -372,7 +414,13 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
     no segment; an object in front of a door hides its corner. Pieces span their own part of u
     and their own points' height (clipped to the front's); each side is cut again up to
     ``max_depth``. ``[front]`` otherwise. ``log`` (a list) receives each cut's evidence (which
-    outline, position along u, step, spread (m), the notch's share of other surfaces)."""
+    outline, position along u, step, spread (m), the notch's share of other surfaces), its
+    ``margin`` (the least clearance of the tests in metres: step, straightness, pieces' widths)
+    and ``notch_margin`` (the notch's share of other surfaces less 2/3). ``near`` (a list)
+    receives each outline's best step, cut or not, that is as close to its bounds as
+    :func:`depth_step_cuts`' (a margin within :data:`STEP_BAND`, a notch share within
+    :data:`SHARE_BAND`; ``made``, ``outline``, ``at_u``, ``margin``, ``notch_margin``): the
+    tests that failed all within their bands, or a made cut with one test within its band."""
     w, h = front.size
     pu, pv, pn = front_coords(front, points).T
     ok = (np.abs(pu) <= w / 2) & (np.abs(pv) <= h / 2) & (np.abs(pn) <= 0.05)
@@ -395,11 +443,11 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
             return [(a, b)]
         for prof, is_top in ((tb[:, 0], True), (tb[:, 1], False)):
             k, step, spread = _change_point(x, prof)
-            if k < 0 or abs(step) < min_step or spread > abs(step) / 4:
+            if k < 0:
                 continue
             at = 0.5 * (x[k - 1] + x[k])
-            if min(at - a, b - at) < min_piece:
-                continue
+            # each length test's clearance (m; < 0: failed): the step's size, the runs' straightness, the pieces
+            margin = min(abs(step) - min_step, abs(step) / 4 - spread, min(at - a, b - at) - min_piece)
             # the notch: over the shorter side, between its edge and the longer side's
             lo_side = (step > 0) == is_top  # the side (left of ``at``) whose outline is short
             nu0, nu1 = (a, at) if lo_side else (at, b)
@@ -409,11 +457,20 @@ def extent_step_cuts(front: Front, points: np.ndarray, scene_points: np.ndarray,
             in_notch = (su >= nu0 + 0.01) & (su < nu1 - 0.01) & (sv >= nv0) & (sv <= nv1) & (np.abs(sn) < 0.6)
             other = ((scene_segment[in_notch] >= 0) & (scene_segment[in_notch] != segment)) | (
                 (np.abs(sn[in_notch]) > plane_tol) & (sn[in_notch] <= 0.03))
-            if in_notch.sum() < 10 or other.mean() < 2 / 3:
+            seen = in_notch.sum() >= 10
+            notch_margin = float(other.mean()) - 2 / 3 if seen else -1.0
+            made = margin >= 0 and notch_margin >= 0
+            flip = min(margin / STEP_BAND, notch_margin / SHARE_BAND)  # in bands: |flip| < 1 is near
+            if near is not None and seen and abs(flip) < 1:
+                near.append({"cut": "outline_step", "made": made, "outline": "top" if is_top else "bottom",
+                             "at_u": round(float(at), 4), "margin": round(float(margin), 4),
+                             "notch_margin": round(notch_margin, 3)})
+            if not made:
                 continue
             if log is not None:
                 log.append({"cut": "outline_step", "outline": "top" if is_top else "bottom", "at_u": round(float(at), 4),
-                            "step": round(step, 4), "spread": round(spread, 4), "notch_other": round(float(other.mean()), 3)})
+                            "step": round(step, 4), "spread": round(spread, 4), "notch_other": round(float(other.mean()), 3),
+                            "margin": round(float(margin), 4), "notch_margin": round(notch_margin, 3)})
             return cut(a, at, depth - 1) + cut(at, b, depth - 1)
         return [(a, b)]
 

@@ -57,9 +57,11 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     merged in most views) gives each of them, its info ``piece`` k ``of`` n. Then, from the mesh
     alone, each rectangle is cut where the surface steps by a sliding track's offset
     (``cfg.split.depth_steps``) and where the segment's outline steps (``extent_steps``), the
-    evidence in the info's ``mesh_cuts`` (and a depth step cut or left by less than
-    :data:`~drawer_lib.articulation.gaps.STEP_BAND` in ``near_cuts``: its fronts are marked
-    ``low_margin``). A planar segment whose label votes are mostly no front
+    evidence in the info's ``mesh_cuts``. A cut made or left by a margin another machine's last
+    bits could cross (a gap line one cell of the rectified front from its coverage bound, a
+    width one cell from ``max_width``, a depth or outline step within
+    :data:`~drawer_lib.articulation.gaps.STEP_BAND` of its bounds) is listed in ``near_cuts``,
+    and the segment's fronts are marked ``low_margin``. A planar segment whose label votes are mostly no front
     label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part.
     Last, coplanar neighbours share their edges (:func:`~drawer_lib.articulation.fronts.share_edges`,
     on each front's own face centres); a side that moved in by more than half of
@@ -89,12 +91,13 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
         if masks_of is not None:
             front, used = refine_with_masks(fitted, masks_of(s), fc)
         pieces, even = [front], []  # even: the parts of it cut into equal pieces (split.wide_even)
+        near_cuts: list[dict] = []  # cuts made or not by a margin another machine's last bits could undo
         if cfg.split.enabled and cfg.rectify.enabled and views and any(v.image is not None for v in views):
             stems = {st for st, _ in s.matched}
             rf = rectify_front(front, views, cfg.rectify, np.array([v.stem in stems for v in views]))
-            pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views, log=even)
+            pieces = split_front(front, rf, cfg.split, cfg.rectify.min_rate, cfg.rectify.min_views, log=even,
+                                 near=near_cuts)
         cuts: list[dict] = []  # the evidence of the mesh's cuts
-        near_cuts: list[dict] = []  # depth steps cut or not by a margin another machine's mesh could undo
         if cfg.split.depth_steps or cfg.split.extent_steps:
             pts, _ = sample_points(mesh, s.faces, fc.sample_per_m2, seed=0)
             if cfg.split.depth_steps:
@@ -103,7 +106,8 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                                                                        near=near_cuts)]
             if cfg.split.extent_steps:
                 pieces = [q for p in pieces for q in extent_step_cuts(p, pts, centres, owner, s.id, cfg.split.extent_min_step,
-                                                                        cfg.split.min_piece, cfg.split.depth_bin, log=cuts)]
+                                                                        cfg.split.min_piece, cfg.split.depth_bin, log=cuts,
+                                                                        near=near_cuts)]
         wide = cfg.split.enabled and 0 < cfg.split.max_width < front.size[0]  # cut by articulate.split.max_width
         too_wide = {"too_wide": round(float(front.size[0]), 4)} if wide else {}
         for k, piece in enumerate(pieces):

@@ -91,6 +91,53 @@ def test_no_cut_through_a_handle_or_near_an_edge():
     assert split_front(FRONT, rf, SplitConfig(), 0.3, 3) == [FRONT]
 
 
+def _partial_boundary(rows_per_third: int) -> RectifiedFront:
+    """FRONT with a strong mask boundary at u = 0.4 m in the first ``rows_per_third`` rows of
+    each third of its 150 rows (50 per third; coverage 0.6 needs 30 of them)."""
+    rf = _rf(boundaries_u=[0.4])
+    col = int(0.4 / RES)
+    keep = np.zeros(rf.edge_u.shape[0], bool)
+    for t in range(3):
+        keep[50 * t:50 * t + rows_per_third] = True
+    rf.edge_u[~keep, col] = 0
+    return rf
+
+
+def test_a_gap_line_one_cell_from_its_coverage_bound_is_reported_near():
+    """A cut whose coverage clears its bound by less than one cell of a third, or misses it by
+    one cell at most, goes to ``near`` (made or not, where, by how much); one well clear or
+    well short does not, and the pieces are those of the same front without ``near``."""
+    band = 1 / 50
+    for rows, made in ((30, True), (29, False)):  # the bound exactly; one cell short of it in each third
+        near = []
+        pieces = split_front(FRONT, _partial_boundary(rows), SplitConfig(), 0.3, 3, near=near)
+        assert len(pieces) == (2 if made else 1)
+        assert pieces == split_front(FRONT, _partial_boundary(rows), SplitConfig(), 0.3, 3)
+        (n,) = near
+        assert n["cut"] == "gap_line" and n["axis"] == "u" and n["made"] is made
+        assert n["margin"] == pytest.approx(rows / 50 - 0.6, abs=1e-4) and n["band"] == pytest.approx(band)
+        assert n["at_u"] == pytest.approx(0.0, abs=RES)  # the line, from the front's centre (0.4 m from its left)
+    for rows in (45, 20):  # 0.3 clear, 0.2 short: no cell decides it
+        near = []
+        split_front(FRONT, _partial_boundary(rows), SplitConfig(), 0.3, 3, near=near)
+        assert near == []
+
+
+def test_a_front_one_cell_from_max_width_is_reported_near():
+    """Whether a front counts as too wide to be one is a width test: one a cell either side of
+    ``max_width`` is listed (``too_wide``, its width and whether it was), one clear of it is not."""
+    rf = _wide_rf(lines_u=[0.5, 1.0, 1.5])
+    near = []
+    split_front(WIDE, rf, SplitConfig(max_width=2.0, wide_even=0.0), 0.3, 3, near=near)
+    assert {"cut": "too_wide", "made": False, "width": pytest.approx(2.0, abs=RES)} in near
+    near = []
+    split_front(WIDE, rf, SplitConfig(max_width=1.996, wide_even=0.0), 0.3, 3, near=near)
+    assert {"cut": "too_wide", "made": True, "width": pytest.approx(2.0, abs=RES)} in near
+    near = []
+    split_front(WIDE, rf, SplitConfig(max_width=1.3), 0.3, 3, near=near)
+    assert not [n for n in near if n["cut"] == "too_wide"]
+
+
 def test_nothing_seen_is_no_split():
     rf = _rf(boundaries_u=[0.4])
     rf.rgb[:] = np.nan
@@ -413,6 +460,34 @@ def test_a_rectangle_or_a_small_step_is_not_cut():
     ragged = np.concatenate([_rect_points(rng, -0.425, 0.0, -0.41, 0.38), _rect_points(rng, 0.0, 0.425, -0.41, 0.41)])
     assert extent_step_cuts(f, ragged, scene, owner, 1, 0.05, 0.1) == [f]  # a 3 cm step: under min_step
     assert extent_step_cuts(f, np.zeros((0, 3)), scene, owner, 1, 0.05, 0.1) == [f]
+
+
+def test_an_outline_step_records_its_margins_and_one_near_its_bounds_is_reported():
+    """An outline cut logs ``margin`` (the least clearance of its length tests, m) and
+    ``notch_margin`` (the notch's share of other surfaces less 2/3); with ``min_step`` half a
+    millimetre either side of the measured step the cut is made or not, and either way listed
+    in ``near``; at the default bound it is clear and not listed."""
+    from drawer_lib.articulation.gaps import STEP_BAND, extent_step_cuts
+
+    rng = np.random.default_rng(5)
+    seg, front = _l_shape(rng)
+    wall = _rect_points(rng, -0.425, 0.0, 0.25, 0.41, -0.3)
+    scene = np.concatenate([seg, wall])
+    owner = np.r_[np.ones(len(seg)), -np.ones(len(wall))].astype(int)
+    log, near = [], []
+    assert len(extent_step_cuts(front, seg, scene, owner, 1, 0.05, 0.1, log=log, near=near)) == 2
+    (c,) = log
+    assert c["margin"] == pytest.approx(min(abs(c["step"]) - 0.05, abs(c["step"]) / 4 - c["spread"],
+                                            0.425 - abs(c["at_u"]) - 0.1), abs=2e-4)
+    assert c["notch_margin"] == pytest.approx(c["notch_other"] - 2 / 3, abs=2e-3) and c["notch_margin"] > 0.02
+    assert c["margin"] > STEP_BAND and near == []
+    for d, made in ((-0.0005, True), (0.0005, False)):
+        log, near = [], []
+        pieces = extent_step_cuts(front, seg, scene, owner, 1, abs(c["step"]) + d, 0.1, log=log, near=near)
+        assert len(pieces) == (2 if made else 1) and len(log) == int(made)
+        (n,) = [x for x in near if x["outline"] == c["outline"]]
+        assert n["cut"] == "outline_step" and n["made"] is made and abs(n["margin"]) < STEP_BAND
+        assert n["at_u"] == pytest.approx(c["at_u"], abs=1e-9)
 
 
 def test_window_contrast_reads_a_pane_not_a_pull():
