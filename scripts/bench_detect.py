@@ -1,8 +1,10 @@
 #!/usr/bin/env python
 """Parts from each source of 2D detections, on benchmark kitchens: every kitchen of a split is
-built as the benchmark builds it (simulated RGB-D and detections whose failures persist across
-views, the TSDF geometry), then for each ``--detect`` model its ``detect`` stage runs and
-decompose and articulate read that:
+built with the benchmark's sensors and geometry (simulated RGB-D and detections whose failures
+persist across views, the TSDF geometry; the same kitchens and views as the ``bench_kitchen``
+stages, but its own draw of the sensors' noise, seeded 1000 x split + k, so its ``capture``
+figures are another draw than the stages' and compare with this script's runs only), then for
+each ``--detect`` model its ``detect`` stage runs and decompose and articulate read that:
 ``capture`` (the simulated detector), ``builtin`` (the detector the ``detector`` stage trained,
 which never sees the capture's detections) and ``none`` (the geometric path). Scored against the
 ground truth: precision, recall and EA-score (docs/formats.md#articulation-precision-and-recall),
@@ -115,7 +117,7 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     base = OmegaConf.to_container(cfg.scene, resolve=True)
     scene = kitchen_scene(base, split, k, layout=layout)
     sp = ScenePaths(out / split, f"kitchen_{k}")
-    seed = 1000 * SPLITS.index(split) + k
+    seed = 1000 * SPLITS.index(split) + k  # not the bench stages' kitchen_seed: the figures in docs/ were drawn with this
     if not sp.metrics("mesh").is_file():
         if layout:
             sp.root.mkdir(parents=True, exist_ok=True)
