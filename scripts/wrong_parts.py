@@ -7,7 +7,9 @@ more) or ``no_front`` (:func:`drawer_lib.metrics.articulation.wrong_parts`), and
 (true kind -> predicted kind) pairs of the wrongly typed. With ``--decisions``, each wrongly typed
 part is listed with what articulate recorded for its front in ``decisions.json``: its size (m),
 the score margin over the runner-up, the handle's orientation, the hypotheses excluded, the
-reason. With ``--missed``, the other side: each true part recall counts as not found, and why
+reason. Each split's line is followed by the precision of the parts articulate flagged
+``low_margin`` and of the others (:func:`drawer_lib.metrics.articulation.precision_by_flag`):
+what the flag is worth as "check this one first". With ``--missed``, the other side: each true part recall counts as not found, and why
 (``wrong_kind``, ``merged`` into a front that touches a neighbour too, ``off_front``, or
 ``no_part``: no predicted articulated front touches it;
 :func:`drawer_lib.metrics.articulation.missed_parts`), by its true kind. Look only at kitchens
@@ -26,7 +28,8 @@ from pathlib import Path
 
 from bench_detect import variant  # the folder bench_detect writes a model's parts to
 from drawer_lib.io.parts import read_parts
-from drawer_lib.metrics.articulation import MISSED_WHY, WRONG_WHY, match_parts, missed_parts, wrong_parts
+from drawer_lib.metrics.articulation import (MISSED_WHY, WRONG_WHY, match_parts, missed_parts, precision_by_flag,
+                                             wrong_parts)
 from drawer_lib.paths import ScenePaths, capture_name
 
 
@@ -42,11 +45,13 @@ def decision_fields(segment: dict | None) -> dict:
             "excluded": sorted(segment.get("excluded") or {}), "reason": segment.get("reason")}
 
 
-def split_rows(split_dir: Path, folder: str, decisions: bool = False, missed: list | None = None) -> list[dict]:
+def split_rows(split_dir: Path, folder: str, decisions: bool = False, missed: list | None = None,
+               flags: dict | None = None) -> list[dict]:
     """The wrong parts of every built kitchen of ``split_dir`` scored from ``by_detector/<folder>``,
     each with its ``kitchen``; with ``decisions``, the wrongly typed ones with
     :func:`decision_fields` of their front. ``missed``: a list that the true parts not found
-    (:func:`missed_parts`, each with its ``kitchen``) are appended to."""
+    (:func:`missed_parts`, each with its ``kitchen``) are appended to. ``flags``: {True: [correct,
+    counted], False: [...]}, to which each kitchen's :func:`precision_by_flag` is added."""
     kitchens = sorted(split_dir.glob("kitchen_*"), key=lambda p: int(p.name.split("_")[-1]))
     if not kitchens:
         raise SystemExit(f"error: {split_dir}: no kitchen_* folders (a bench_detect --out DIR writes DIR/<split>/)")
@@ -58,6 +63,10 @@ def split_rows(split_dir: Path, folder: str, decisions: bool = False, missed: li
             raise SystemExit(f"error: {pred}: missing (was bench_detect run with this --tag and model?)")
         m = match_parts(read_parts(pred), read_parts(sp.capture / capture_name("gt_parts")))
         found = [{"kitchen": k.name, **r} for r in wrong_parts(m)]
+        if flags is not None:
+            for side, (right, n) in precision_by_flag(m).items():
+                flags[side][0] += right
+                flags[side][1] += n
         if missed is not None:
             missed += [{"kitchen": k.name, **r} for r in missed_parts(m)]
         if decisions and any(r["why"] == "wrong_kind" for r in found):
@@ -86,16 +95,27 @@ def main() -> None:
     a = ap.parse_args()
     folder = variant(a.model, a.tag)
     everything, not_found = [], []
+    pooled = {True: [0, 0], False: [0, 0]}
     for d in a.splits:
         missed = [] if a.missed else None
-        rows = split_rows(d, folder, a.decisions, missed)
+        flags = {True: [0, 0], False: [0, 0]}
+        rows = split_rows(d, folder, a.decisions, missed, flags)
         c = collections.Counter(r["why"] for r in rows)
         print(f"{d} ({folder}): {len(rows)} wrong: " + ", ".join(f"{w} {c[w]}" for w in WRONG_WHY))
+        print(f"{d} ({folder}): " + "; ".join(
+            f"{name} {r}/{n} right ({r / n:.3f})" if n else f"{name} none"
+            for name, (r, n) in (("flagged low_margin", flags[True]), ("the others", flags[False]))))
+        for side in (True, False):
+            pooled[side][0] += flags[side][0]
+            pooled[side][1] += flags[side][1]
         everything += [{"split": str(d), **r} for r in rows]
         if missed is not None:
             c = collections.Counter(r["why"] for r in missed)
             print(f"{d} ({folder}): {len(missed)} true parts not found: " + ", ".join(f"{w} {c[w]}" for w in MISSED_WHY))
             not_found += [{"split": str(d), **r} for r in missed]
+    if len(a.splits) > 1:
+        print("all: " + "; ".join(f"{name} {r}/{n} right ({r / n:.3f})" if n else f"{name} none"
+                                  for name, (r, n) in (("flagged low_margin", pooled[True]), ("the others", pooled[False]))))
     typed = collections.Counter((r["gt_kind"], r["pred_kind"]) for r in everything if r["why"] == "wrong_kind")
     print(f"all: {len(everything)} wrong, {sum(typed.values())} of them wrongly typed; true -> predicted:")
     for (g, p), n in typed.most_common(a.top):

@@ -1,6 +1,7 @@
 """scripts/wrong_parts.py reads what a bench_detect run left and counts why its wrong parts are
 wrong; a folder without that run's outputs is a clear error."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -25,7 +26,8 @@ def _run(*args):
 
 def test_counts_per_split_and_the_commonest_confusion(tmp_path):
     split = tmp_path / "train"
-    for k, pred in ((16, [_door("a", 0.0, "prismatic"), _door("b", 3.0)]), (17, [_door("a", 0.0)])):
+    flagged = dataclasses.replace(_door("a", 0.0), extra={"low_margin": True})  # right, and flagged
+    for k, pred in ((16, [_door("a", 0.0, "prismatic"), _door("b", 3.0)]), (17, [flagged])):
         root = split / f"kitchen_{k}"
         (root / "capture" / "gt").mkdir(parents=True)
         write_parts(root / "capture" / "gt" / "parts.json", PartsFile((_door("d0", 0.0),), ()))
@@ -35,6 +37,7 @@ def test_counts_per_split_and_the_commonest_confusion(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "2 wrong: wrong_kind 1, off_front 0, merged 0, no_front 1" in r.stdout
     assert "1  revolute -> prismatic" in r.stdout
+    assert "flagged low_margin 1/1 right (1.000); the others 0/2 right (0.000)" in r.stdout
     rows = json.loads((tmp_path / "wrong.json").read_text())
     assert [(x["kitchen"], x["why"]) for x in rows] == [("kitchen_16", "wrong_kind"), ("kitchen_16", "no_front")]
     r = _run(split)  # no untagged run there

@@ -7,7 +7,8 @@ import pytest
 from drawer_lib.geometry.camera import Camera, Intrinsics
 from drawer_lib.io.parts import Axis, Front, IgnoreBox, Part, PartsFile
 from drawer_lib.metrics.articulation import (articulation_metrics, clip_convex, convex_iou, ea_pair, front_overlap,
-                                             match_parts, missed_parts, project_segment, wrong_parts)
+                                             match_parts, missed_parts, precision_by_flag, project_segment,
+                                             wrong_parts)
 
 N = (0.0, -1.0, 0.0)
 U = (1.0, 0.0, 0.0)
@@ -85,6 +86,31 @@ def test_wrong_parts_say_why_each_counted_prediction_is_wrong():
     (r,) = wrong_parts(match_parts(swapped, gt))
     assert r["why"] == "wrong_kind" and r["gt_kind"] == "revolute" and r["pred_kind"] == "prismatic" and r["iou"] == pytest.approx(1.0)
     assert [r["why"] for r in wrong_parts(match_parts(pred, PartsFile((), ())))] == ["no_front"] * 6  # no ground truth at all
+
+
+def test_precision_by_flag_splits_the_counted_predictions():
+    """Right and wrong predictions with and without ``low_margin``: each side's (correct,
+    counted); an ignored prediction counts on neither side, and the two sides add up to the
+    precision articulation_metrics reports."""
+    from dataclasses import replace
+
+    g1, g2 = front(cx=0.0), front(cx=0.6)
+    gt = PartsFile((door("d0", g1), door("d1", g2, "prismatic")),
+                   (IgnoreBox("oven", ((1.0, -0.7, 0.0), (1.6, -0.5, 1.0))),))
+    flagged = lambda p: replace(p, extra={"low_margin": True})  # noqa: E731
+    pred = PartsFile((flagged(door("right", front(cx=0.01))),                 # correct, flagged
+                      door("typed", front(cx=0.6), "prismatic"),              # correct
+                      flagged(door("nowhere", front(cx=0.0, cz=3.0))),        # wrong, flagged
+                      flagged(door("twice", front(cx=0.59))),                 # wrong, flagged
+                      door("unflagged_wrong", front(cx=-2.0)),                # wrong
+                      flagged(door("oven_front", front(cx=1.3)))))            # ignored
+    m = match_parts(pred, gt)
+    by = precision_by_flag(m)
+    assert by == {True: (1, 3), False: (1, 2)}
+    res, _ = articulation_metrics(pred, gt, [])
+    assert (by[True][0] + by[False][0]) / (by[True][1] + by[False][1]) == pytest.approx(res["precision"])
+    assert precision_by_flag(m, "no_such_flag") == {True: (0, 0), False: (2, 5)}
+    assert precision_by_flag(match_parts(PartsFile((), ()), gt)) == {True: (0, 0), False: (0, 0)}
 
 
 def test_missed_parts_say_why_each_true_part_was_not_found():
