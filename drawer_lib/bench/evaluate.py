@@ -21,7 +21,7 @@ from drawer_lib.io.capture import load_capture
 from drawer_lib.io.atomic import atomic_write_text
 from drawer_lib.io.images import read_json, write_json
 from drawer_lib.io.parts import read_parts
-from drawer_lib.metrics.articulation import articulation_metrics, match_parts, part_kind
+from drawer_lib.metrics.articulation import articulation_metrics, match_parts, part_kind, precision_by_flag
 from drawer_lib.metrics.motion import kinematic_motion_emd
 from drawer_lib.paths import LAYOUT, BenchPaths, ScenePaths, bench_name, capture_name
 from drawer_lib.report.markdown import md_table
@@ -37,7 +37,9 @@ def score_kitchen(kitchen: ScenePaths, parts_path: Path) -> dict:
     motion EMD of every correct pair with the prediction moved by its own joint in the first test
     view (``emds``; :func:`~drawer_lib.metrics.motion.kinematic_motion_emd`) and the
     (GT kind, predicted kind) of every GT part and every unmatched prediction outside the
-    ignore boxes (``confusion``: :func:`part_kind`, ``none`` for no GT part)."""
+    ignore boxes (``confusion``: :func:`part_kind`, ``none`` for no GT part), and the counts of
+    the parts articulate flagged ``low_margin`` and of the others (``flagged``: [correct,
+    counted] each; :func:`precision_by_flag`)."""
     cap = load_capture(kitchen.capture, check_files=False)
     gt = read_parts(kitchen.capture / capture_name("gt_parts"))
     pred = read_parts(parts_path)
@@ -45,6 +47,8 @@ def score_kitchen(kitchen: ScenePaths, parts_path: Path) -> dict:
     res, details = articulation_metrics(pred, gt, views)
     res["eas"] = [d["ea_score"] for d in details if d.get("ea_score") is not None]
     m = match_parts(pred, gt)
+    by_flag = precision_by_flag(m)
+    res["flagged"] = {"low_margin": list(by_flag[True]), "others": list(by_flag[False])}
     pairs = [(i, j) for i, j, _ in m.correct]
     _, emd_rows = kinematic_motion_emd(m.pred, m.gt, pairs, views[0]) if views else ({}, [])
     res["emds"] = [r["emd"] for r in emd_rows if r["emd"] is not None]
@@ -86,7 +90,9 @@ def summarise(rows: Sequence[dict], source: str) -> dict:
     """The split's figures for one weight ``source`` (fitted | prior): per-kitchen precision,
     recall and EA-score as mean, standard deviation and worst kitchen; pooled over all parts
     (precision = correct / (predicted - ignored), recall = correct / GT; the EA-score of every
-    correct revolute part)."""
+    correct revolute part); and the precision of the parts flagged ``low_margin`` and of the
+    others (``n_low_margin``, ``precision_low_margin``, ``precision_others``: what the flag is
+    worth as "check this one first"; absent from rows scored before the flag was counted)."""
     per = [r[source] for r in rows]
     out: dict = {"n_kitchens": len(per)}
     for key in ("precision", "recall", "ea_score"):
@@ -100,6 +106,13 @@ def summarise(rows: Sequence[dict], source: str) -> dict:
         out["precision"] = n["n_correct"] / scored
     if n["n_gt"] > 0:
         out["recall"] = n["n_correct"] / n["n_gt"]
+    if per and all("flagged" in p for p in per):
+        for side in ("low_margin", "others"):
+            right, counted = (sum(p["flagged"][side][i] for p in per) for i in (0, 1))
+            if side == "low_margin":
+                out["n_low_margin"] = counted
+            if counted:
+                out[f"precision_{side}"] = right / counted
     eas = [e for p in per for e in p["eas"]]
     out["n_revolute_scored"] = len(eas)
     if eas:
