@@ -3,7 +3,8 @@
 built with the benchmark's sensors and geometry (simulated RGB-D and detections whose failures
 persist across views, the TSDF geometry; the same kitchens and views as the ``bench_kitchen``
 stages, but its own draw of the sensors' noise, seeded 1000 x split + k, so its ``capture``
-figures are another draw than the stages' and compare with this script's runs only), then for
+figures are another draw than the stages' and compare with this script's runs only; ``--draw N``
+draws them again, seeded 100000 x N more, into an --out of its own), then for
 each ``--detect`` model its ``detect`` stage runs and decompose and articulate read that:
 ``capture`` (the simulated detector), ``builtin`` (the detector the ``detector`` stage trained,
 which never sees the capture's detections) and ``none`` (the geometric path). Scored against the
@@ -76,6 +77,8 @@ from drawer_lib.synth.splits import SPLITS, WRITTEN, missing_kitchens
 ROOT = Path(__file__).resolve().parent.parent
 FITTED_DIR = "articulate_fitted"
 LAYOUT_FILE = "layout.json"  # beside a kitchen built with --layout: its keys
+DRAW_FILE = "draw.json"  # beside a kitchen built with --draw N > 0: N
+DRAW_STRIDE = 100_000  # the seeds of draw N lie N x this above draw 0's
 OVERRIDES = ["scene=kitchen_small", "capture/detections=persistent", "capture/depth=sensor", "sdf=tsdf"]
 
 
@@ -97,7 +100,7 @@ def reused_run(root: Path, model: str, from_tag: str) -> tuple[ScenePaths, Scene
 
 def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path],
             decisions: dict[str, dict] | None = None, overrides: tuple[str, ...] = (), tag: str = "",
-            layout: dict | None = None, own_detect: bool = False, from_tag: str | None = None) -> dict:
+            layout: dict | None = None, own_detect: bool = False, from_tag: str | None = None, draw: int = 0) -> dict:
     """Build (or reuse) kitchen ``k`` and score each detection model; ``decisions``: fitted
     weights per model (articulate alone reruns, into ``articulate_fitted/``), None: the prior.
     ``overrides``: Hydra overrides of detect, decompose and articulate; ``tag``: their outputs
@@ -109,7 +112,9 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     split: other widths, handle styles); recorded in ``layout.json`` beside the kitchen, and a
     kitchen built with other keys is not reused. ``from_tag``: read the detections and the
     decomposition of ``by_detector/<model>-<from_tag>/`` (a run with that tag; ``""``: the untagged
-    run) and rerun articulate alone (``overrides`` then vary articulate only)."""
+    run) and rerun articulate alone (``overrides`` then vary articulate only). ``draw``: the
+    sensors' noise drawn again (0: as ever; N: seeded ``DRAW_STRIDE`` x N higher, the same kitchen
+    and views), recorded in ``draw.json`` beside the kitchen."""
     import torch
 
     torch.set_num_threads(1)
@@ -117,11 +122,14 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     base = OmegaConf.to_container(cfg.scene, resolve=True)
     scene = kitchen_scene(base, split, k, layout=layout)
     sp = ScenePaths(out / split, f"kitchen_{k}")
-    seed = 1000 * SPLITS.index(split) + k  # not the bench stages' kitchen_seed: the figures in docs/ were drawn with this
+    seed = 1000 * SPLITS.index(split) + k + DRAW_STRIDE * draw  # not the stages' kitchen_seed: docs/ drew with this
     if not sp.metrics("mesh").is_file():
         if layout:
             sp.root.mkdir(parents=True, exist_ok=True)
             (sp.root / LAYOUT_FILE).write_text(json.dumps(layout))
+        if draw:
+            sp.root.mkdir(parents=True, exist_ok=True)
+            (sp.root / DRAW_FILE).write_text(json.dumps({"draw": draw}))
         with stage_run("capture", sp.capture, seed) as r:
             build_capture(f"{split}_{k}", scene, to_typed(CaptureConfig, cfg.capture, "capture"), r.dir, r.rng, ROOT)
         cap = load_capture(sp.capture, check_files=False)
@@ -164,8 +172,9 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     return row
 
 
-def check_built(out: Path, split: str, kitchens: list[int], layout: dict) -> None:
-    """Refuse kitchens under ``out`` that were built with other ``--layout`` keys than ``layout``."""
+def check_built(out: Path, split: str, kitchens: list[int], layout: dict, draw: int = 0) -> None:
+    """Refuse kitchens under ``out`` that were built with other ``--layout`` keys than ``layout``
+    or another ``--draw`` of the sensors than ``draw``."""
     for k in kitchens:
         sp = ScenePaths(out / split, f"kitchen_{k}")
         if sp.metrics("mesh").is_file():
@@ -173,6 +182,10 @@ def check_built(out: Path, split: str, kitchens: list[int], layout: dict) -> Non
             built = json.loads(marker.read_text()) if marker.is_file() else {}
             if built != layout:
                 raise SystemExit(f"error: {sp.root}: built with layout {built}, not {layout}; use another --out")
+            marker = sp.root / DRAW_FILE
+            built_draw = json.loads(marker.read_text())["draw"] if marker.is_file() else 0
+            if built_draw != draw:
+                raise SystemExit(f"error: {sp.root}: built with --draw {built_draw}, not {draw}; use another --out")
 
 
 def fit_per_model(models: list[str], out: Path, kitchens: list[int], overrides: tuple[str, ...] = (), tag: str = ""
@@ -247,7 +260,12 @@ def main() -> None:
     ap.add_argument("--from-tag", default=None, metavar="TAG",
                     help="rerun articulate alone on the detections and decomposition of the run tagged TAG "
                     "('' for the untagged run); --set may then vary articulate.* only")
+    ap.add_argument("--draw", type=int, default=0,
+                    help="draw the sensors' noise (depth, simulated detections) again: N > 0 seeds every kitchen "
+                    "N x 100000 higher (the same kitchens and views); needs an --out of its own")
     a = ap.parse_args()
+    if a.draw < 0:
+        raise SystemExit(f"error: --draw {a.draw}: 0 (the usual draw) or a positive number")
     layout = parse_layout(a.layout)
     if a.kitchens is None:
         a.kitchens = list(range(len(WRITTEN[a.split]) if a.split in WRITTEN else 20))
@@ -270,7 +288,7 @@ def main() -> None:
             raise SystemExit("error: --from-tag reruns articulate with the prior weights; --decisions fitted has its own rerun")
     if a.decisions == "fitted" and a.split == "train" and set(a.kitchens) & set(a.fit_kitchens):
         raise SystemExit("error: --decisions fitted would score train kitchens the weights were fitted on")
-    check_built(a.out, a.split, a.kitchens, layout)
+    check_built(a.out, a.split, a.kitchens, layout, a.draw)
     for k in a.kitchens if a.from_tag is not None else []:  # before any build
         for model in a.detect:
             reused_run(a.out / a.split / f"kitchen_{k}", model, a.from_tag)
@@ -283,7 +301,7 @@ def main() -> None:
                        else (None, None))
     with ProcessPoolExecutor(a.jobs) as ex:
         futs = [ex.submit(kitchen, a.split, k, a.detect, a.out, weights, fitted, tuple(a.set), a.tag,
-                          layout, own_weights and bool(a.tag), a.from_tag)
+                          layout, own_weights and bool(a.tag), a.from_tag, a.draw)
                 for k in a.kitchens]
         rows = []
         for f in futs:
@@ -292,7 +310,7 @@ def main() -> None:
             print(f"{a.split} {row['kitchen']:2d}: " + "   ".join(
                 f"{m} P {row[m]['precision'] if row[m]['precision'] is not None else float('nan'):.2f} "
                 f"R {row[m]['recall']:.2f}" for m in a.detect), flush=True)
-    summ = {"split": a.split, "kitchens": a.kitchens, "layout": layout, "weights": a.decisions, "fit": fit_rec, "set": a.set,
+    summ = {"split": a.split, "kitchens": a.kitchens, "layout": layout, "draw": a.draw, "weights": a.decisions, "fit": fit_rec, "set": a.set,
             "from_tag": a.from_tag,
             "detector_weights": [str(w) for w in weights],
             "by_model": summarise(rows, a.detect), "rows": rows}

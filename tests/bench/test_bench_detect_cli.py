@@ -66,6 +66,45 @@ def test_a_kitchen_not_built_yet_is_built(tmp_path, monkeypatch, layout):
     assert (tmp_path / "train" / "kitchen_16" / "layout.json").is_file() == bool(layout)
 
 
+def test_another_draw_of_the_sensors_is_seeded_apart_and_not_mixed_with_the_first(tmp_path, monkeypatch):
+    """``--draw N`` builds the same kitchen with its sensors seeded N x DRAW_STRIDE higher and
+    records N beside it; over kitchens of another draw the script stops before any work."""
+    import contextlib
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_detect", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    seeds = []
+    real = mod.stage_run
+
+    @contextlib.contextmanager
+    def recording(name, path, seed, **kw):
+        seeds.append((name, seed))
+        with real(name, path, seed, **kw) as r:
+            yield r
+
+    monkeypatch.setattr(mod, "stage_run", recording)
+    monkeypatch.setattr(mod, "build_capture", lambda *a, **k: None)
+    monkeypatch.setattr(mod, "run_sdf", lambda *a, **k: {})
+    monkeypatch.setattr(mod, "run_mesh", lambda *a, **k: {})
+    monkeypatch.setattr(mod, "load_capture", lambda *a, **k: None)
+    monkeypatch.setattr(mod, "load_field", lambda *a, **k: None)
+    for out, draw in ((tmp_path / "d0", 0), (tmp_path / "d2", 2)):
+        seeds.clear()
+        mod.kitchen("train", 16, [], out, tmp_path / "weights.pt", draw=draw)
+        assert seeds == [(st, 16 + mod.DRAW_STRIDE * draw) for st in ("capture", "sdf", "mesh")]
+        assert (out / "train" / "kitchen_16" / "draw.json").is_file() == bool(draw)
+    mod.check_built(tmp_path / "d2", "train", [16], {}, 2)
+    with pytest.raises(SystemExit, match="built with --draw 2, not 0; use another --out"):
+        mod.check_built(tmp_path / "d2", "train", [16], {}, 0)
+    with pytest.raises(SystemExit, match="built with --draw 0, not 1"):
+        mod.check_built(tmp_path / "d0", "train", [16], {}, 1)
+    r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path / "d0"), "--split", "train", "--kitchens",
+                        "16", "--detect", "none", "--draw", "-1"], capture_output=True, text=True, timeout=300)
+    assert r.returncode != 0 and "--draw -1: 0 (the usual draw) or a positive number" in r.stderr
+
+
 def test_from_tag_reruns_articulate_alone_on_the_tagged_runs_outputs(tmp_path, monkeypatch):
     """``--from-tag``: detect and decompose are not run; articulate reads the decomposition of
     ``by_detector/<model>-<from_tag>/`` and writes to the new tag's folder, which is scored."""
