@@ -30,6 +30,8 @@ cut into pieces of equal width near ``wide_even`` (a run of modules of one width
 Shapes: grids are [Gv, Gu], v bottom -> top, u left -> right.
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 from drawer_lib.articulation.config import SplitConfig
@@ -39,6 +41,18 @@ from drawer_lib.articulation.rectify import RectifiedFront
 from drawer_lib.io.parts import Front
 
 Piece = tuple[int, int, int, int]  # (u0, u1, v0, v1): cell ranges, end exclusive
+
+
+class Clearance(NamedTuple):
+    """How far a piece's best gap line is from being cut or left (:func:`_best_cut`)."""
+
+    at: int  # the column (cell) of the best-cleared line
+    margin: float  # its coverage clearance, a share of a third of the span (>= 0: cut)
+    band: float  # one cell's share of the shortest third
+
+    def near(self) -> bool:
+        """One cell seen the other way could turn it: cut by less than a band, or short by one at most."""
+        return -1 - 1e-6 <= self.margin / self.band < 1 - 1e-6
 
 
 def line_cells(gray: np.ndarray, step: int, contrast: float, texture_k: float) -> tuple[np.ndarray, np.ndarray]:
@@ -89,7 +103,7 @@ def _span_coverage(lines: np.ndarray, parts: int = 3) -> np.ndarray:
 
 def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarray, lo: int, hi: int, a0: int,
               a1: int, min_cells: int, coverage: float, coverage_handles: float,
-              several: bool = False) -> tuple[int, float, tuple[int, float, float] | None]:
+              several: bool = False) -> tuple[int, float, Clearance | None]:
     """The best cut along axis 1 of the line maps [A, B] ``lines`` = (strong mask boundaries,
     weak ones, image lines) between columns lo + ``min_cells`` and hi - ``min_cells``, over rows
     a0..a1: (column, coverage, clearance) or (-1, 0, clearance). A column qualifies when its strong boundary cells
@@ -100,7 +114,7 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
     to be one), so the weak kinds need no handles either side; with ``coverage_handles`` 0 any
     column with a line cell in each third qualifies (the best-covered wins).
 
-    The clearance (column, margin, band), with ``coverage_handles`` > 0: ``margin`` is the
+    The :class:`Clearance` (column, margin, band), with ``coverage_handles`` > 0: ``margin`` is the
     largest clearance of the coverage tests over the columns a cut may take (a share of a third
     of the rows; >= 0 exactly when some column qualifies), at that column; ``band`` is one
     cell of the shortest third, so a cut with a margin under one band, or missing by one band
@@ -126,7 +140,7 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
         while k + 1 < len(c) and c[k + 1] == c[i]:  # the middle of a plateau, as for the cut
             k += 1
         band = 1.0 / min(len(x) for x in np.array_split(np.arange(a1 - a0), min(3, a1 - a0)))
-        clear = (lo + (i + k) // 2, float(c[i]), band)
+        clear = Clearance(lo + (i + k) // 2, float(c[i]), band)
     ok = ((strong >= coverage) | (weak_ok & left & right)) & free
     if not ok.any():
         return -1, 0.0, clear
@@ -189,9 +203,9 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
         if wide_cells > 0 and abs(u1 - u0 - wide_cells - 0.5) < 1:
             near.append({"cut": "too_wide", "made": wide, "cells": u1 - u0})
         for axis, clear in (("u", None if wide else clear_u), ("v", clear_v)):  # a wide piece is cut either way
-            if clear is not None and -1 - 1e-6 <= clear[1] / clear[2] < 1 - 1e-6:  # one cell turns it
-                near.append({"cut": "gap_line", "axis": axis, "made": clear[1] >= 0, "at": clear[0],
-                             "margin": round(clear[1], 4), "band": round(clear[2], 4)})
+            if clear is not None and clear.near():
+                near.append({"cut": "gap_line", "axis": axis, "made": clear.margin >= 0, "at": clear.at,
+                             "margin": round(clear.margin, 4), "band": round(clear.band, 4)})
     if wide and ju < 0:  # too wide to be one front, and no line good enough: the best line there is
         ju, cu, _ = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)
         if ju >= 0:
