@@ -172,18 +172,22 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
     return row
 
 
+def _marker(root: Path, name: str, absent):
+    """The JSON a build left beside a kitchen (``layout.json``, ``draw.json``); ``absent`` without one."""
+    path = root / name
+    return json.loads(path.read_text()) if path.is_file() else absent
+
+
 def check_built(out: Path, split: str, kitchens: list[int], layout: dict, draw: int = 0) -> None:
     """Refuse kitchens under ``out`` that were built with other ``--layout`` keys than ``layout``
     or another ``--draw`` of the sensors than ``draw``."""
     for k in kitchens:
         sp = ScenePaths(out / split, f"kitchen_{k}")
         if sp.metrics("mesh").is_file():
-            marker = sp.root / LAYOUT_FILE
-            built = json.loads(marker.read_text()) if marker.is_file() else {}
+            built = _marker(sp.root, LAYOUT_FILE, {})
             if built != layout:
                 raise SystemExit(f"error: {sp.root}: built with layout {built}, not {layout}; use another --out")
-            marker = sp.root / DRAW_FILE
-            built_draw = json.loads(marker.read_text())["draw"] if marker.is_file() else 0
+            built_draw = _marker(sp.root, DRAW_FILE, {"draw": 0})["draw"]
             if built_draw != draw:
                 raise SystemExit(f"error: {sp.root}: built with --draw {built_draw}, not {draw}; use another --out")
 

@@ -45,6 +45,12 @@ def decision_fields(segment: dict | None) -> dict:
             "excluded": sorted(segment.get("excluded") or {}), "reason": segment.get("reason")}
 
 
+def flag_line(flags: dict) -> str:
+    """``flags`` ({True: [correct, counted], False: [...]}) as the line printed after a split's."""
+    return "; ".join(f"{name} {r}/{n} right ({r / n:.3f})" if n else f"{name} none"
+                     for name, (r, n) in (("flagged low_margin", flags[True]), ("the others", flags[False])))
+
+
 def split_rows(split_dir: Path, folder: str, decisions: bool = False, missed: list | None = None,
                flags: dict | None = None) -> list[dict]:
     """The wrong parts of every built kitchen of ``split_dir`` scored from ``by_detector/<folder>``,
@@ -102,9 +108,7 @@ def main() -> None:
         rows = split_rows(d, folder, a.decisions, missed, flags)
         c = collections.Counter(r["why"] for r in rows)
         print(f"{d} ({folder}): {len(rows)} wrong: " + ", ".join(f"{w} {c[w]}" for w in WRONG_WHY))
-        print(f"{d} ({folder}): " + "; ".join(
-            f"{name} {r}/{n} right ({r / n:.3f})" if n else f"{name} none"
-            for name, (r, n) in (("flagged low_margin", flags[True]), ("the others", flags[False]))))
+        print(f"{d} ({folder}): {flag_line(flags)}")
         for side in (True, False):
             pooled[side][0] += flags[side][0]
             pooled[side][1] += flags[side][1]
@@ -114,8 +118,7 @@ def main() -> None:
             print(f"{d} ({folder}): {len(missed)} true parts not found: " + ", ".join(f"{w} {c[w]}" for w in MISSED_WHY))
             not_found += [{"split": str(d), **r} for r in missed]
     if len(a.splits) > 1:
-        print("all: " + "; ".join(f"{name} {r}/{n} right ({r / n:.3f})" if n else f"{name} none"
-                                  for name, (r, n) in (("flagged low_margin", pooled[True]), ("the others", pooled[False]))))
+        print(f"all: {flag_line(pooled)}")
     typed = collections.Counter((r["gt_kind"], r["pred_kind"]) for r in everything if r["why"] == "wrong_kind")
     print(f"all: {len(everything)} wrong, {sum(typed.values())} of them wrongly typed; true -> predicted:")
     for (g, p), n in typed.most_common(a.top):

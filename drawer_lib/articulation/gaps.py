@@ -129,19 +129,21 @@ def _best_cut(lines: tuple[np.ndarray, np.ndarray, np.ndarray], handle: np.ndarr
     if several:
         left[:], right[:] = True, True
     aided = np.maximum(weak, img)
-    weak_ok = aided > 0 if coverage_handles <= 0 else aided >= coverage_handles
+    # each column's clearance of its tests (>= 0: it qualifies); with coverage_handles 0 any weak cell will do
+    weak_clear = aided - coverage_handles if coverage_handles > 0 else np.where(aided > 0, 0.0, -1.0)
+    c = np.maximum(strong - coverage, np.where(left & right, weak_clear, -1.0))
     free = ~h
     free[:min_cells] = False
     free[len(free) - min_cells:] = False
+    ok = (c >= 0) & free
     clear = None
     if coverage_handles > 0 and free.any():
-        c = np.where(free, np.maximum(strong - coverage, np.where(left & right, aided - coverage_handles, -1.0)), -np.inf)
+        c = np.where(free, c, -np.inf)
         i = k = int(np.argmax(c))
         while k + 1 < len(c) and c[k + 1] == c[i]:  # the middle of a plateau, as for the cut
             k += 1
         band = 1.0 / min(len(x) for x in np.array_split(np.arange(a1 - a0), min(3, a1 - a0)))
         clear = Clearance(lo + (i + k) // 2, float(c[i]), band)
-    ok = ((strong >= coverage) | (weak_ok & left & right)) & free
     if not ok.any():
         return -1, 0.0, clear
     score = np.where(ok, np.maximum(strong, aided), -1.0)
