@@ -3,6 +3,8 @@
 CUDA where this torch build sees none, is a :class:`~drawer_lib.errors.ConfigError` naming the
 key, not an assertion deep inside a model's ``.to()``."""
 
+from contextlib import AbstractContextManager, nullcontext
+
 import torch
 
 from drawer_lib.errors import ConfigError
@@ -39,3 +41,20 @@ def device_name(name: str | torch.device) -> str:
         return dev.type
     i = dev.index if dev.index is not None else torch.cuda.current_device()
     return f"cuda:{i} {torch.cuda.get_device_name(i)}"
+
+
+def cuda_numerics(dev: torch.device) -> AbstractContextManager:
+    """The numerics a network runs under on ``dev``, in its fit and when it is applied: on CUDA,
+    cuDNN's deterministic convolutions in full float32 and without autotuning, so every run
+    picks the same kernels. cuDNN's TF32 default (a 10-bit mantissa) moved a fit's third loss by
+    1.5e-4 on an H200 and would move the detector's probabilities by as much, enough to turn a
+    decoding decision near its threshold (a merge, a front's score) on a card and not on the
+    CPU. (In a fit, the bilinear upsampling's and max-pooling's backward passes still add with
+    atomics, so two CUDA fits can differ in the last bits.) On the CPU nothing changes.
+
+    >>> import contextlib; isinstance(cuda_numerics(torch.device("cpu")), contextlib.nullcontext)
+    True
+    """
+    if dev.type != "cuda":
+        return nullcontext()
+    return torch.backends.cudnn.flags(enabled=True, benchmark=False, deterministic=True, allow_tf32=False)

@@ -8,7 +8,7 @@ import torch
 from drawer_lib.detect.builtin import BuiltinDetector, TinyUNet, save_detector
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.train import Sample, fit_detector, fit_fingerprint
-from drawer_lib.devices import device_name, torch_device
+from drawer_lib.devices import cuda_numerics, device_name, torch_device
 from drawer_lib.errors import ConfigError
 
 no_cuda = pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA present: the gpu tests cover it")
@@ -48,6 +48,36 @@ def test_a_detector_fit_or_the_detect_stage_on_absent_cuda_stops_before_any_work
     save_detector(tmp_path / "w.pt", TinyUNet(4), {})
     with pytest.raises(ConfigError, match=r"detect\.device = 'cuda'"):
         BuiltinDetector(tmp_path / "w.pt", BuiltinDetectConfig(), "cuda")
+
+
+def test_cuda_numerics_turn_tf32_and_autotuning_off_and_leave_the_cpu_alone():
+    """cuDNN's own default is TF32 on; inside the context it is off (the flags are set on a
+    CPU build too), and they are back after it."""
+    before = (torch.backends.cudnn.allow_tf32, torch.backends.cudnn.benchmark, torch.backends.cudnn.deterministic)
+    with cuda_numerics(torch.device("cuda")):
+        assert not torch.backends.cudnn.allow_tf32 and not torch.backends.cudnn.benchmark
+        assert torch.backends.cudnn.deterministic
+    assert (torch.backends.cudnn.allow_tf32, torch.backends.cudnn.benchmark, torch.backends.cudnn.deterministic) == before
+    with cuda_numerics(torch.device("cpu")):
+        assert torch.backends.cudnn.allow_tf32 == before[0]
+
+
+def test_the_detector_is_applied_under_the_numerics_of_its_device(monkeypatch):
+    """``class_probs`` enters :func:`cuda_numerics` with the network's device (on a card: no
+    TF32, as in its fit)."""
+    import numpy as np
+
+    import drawer_lib.detect.builtin as builtin
+
+    seen = []
+
+    def spy(dev):
+        seen.append(dev)
+        return cuda_numerics(dev)
+
+    monkeypatch.setattr(builtin, "cuda_numerics", spy)
+    builtin.class_probs(TinyUNet(4).eval(), np.zeros((8, 8, 3), np.uint8), 8)
+    assert seen == [torch.device("cpu")]
 
 
 def test_a_fit_state_saved_on_one_device_is_not_gone_on_from_on_another():

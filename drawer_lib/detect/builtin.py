@@ -23,7 +23,7 @@ from torch import Tensor, nn
 
 from drawer_lib.detect.config import BuiltinDetectConfig
 from drawer_lib.detect.masks import Detection
-from drawer_lib.devices import torch_device
+from drawer_lib.devices import cuda_numerics, torch_device
 from drawer_lib.errors import InputError, NonFiniteError
 
 CLASSES = ("background", "front", "edge", "handle", "object")
@@ -134,13 +134,16 @@ def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsem
 def class_probs(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[np.ndarray, "C h w"]:
     """Per-class probabilities at the working size (long side ``size``), computed on the
     model's device (the image is resized on the CPU first, so only the network's numerics
-    depend on it)."""
+    depend on it) under the fit's numerics (:func:`~drawer_lib.devices.cuda_numerics`: on
+    CUDA no TF32)."""
     H, W = rgb.shape[:2]
     h, w = working_shape(H, W, size)
     x = normalise(rgb)[None]
     if (h, w) != (H, W):
         x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
-    p = torch.softmax(model(x.to(model_device(model)))[0], 0)
+    dev = model_device(model)
+    with cuda_numerics(dev):
+        p = torch.softmax(model(x.to(dev))[0], 0)
     if not torch.isfinite(p).all():
         raise NonFiniteError("detect: the built-in detector gave non-finite probabilities")
     return p.cpu().numpy()

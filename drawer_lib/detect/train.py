@@ -26,7 +26,7 @@ from drawer_lib.config.typed import to_typed
 from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, load_detector, model_device, normalise, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
-from drawer_lib.devices import device_name, torch_device
+from drawer_lib.devices import cuda_numerics, device_name, torch_device
 from drawer_lib.errors import ConfigError, InputError, NonFiniteError
 from drawer_lib.io.atomic import atomic_open
 from drawer_lib.metrics.detections import match_fronts
@@ -197,7 +197,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     model.train()
     done, in_step = start - 1, False
     try:
-        with deferred_interrupts() if resume is not None else nullcontext([]) as pending, fit_numerics(dev):
+        with deferred_interrupts() if resume is not None else nullcontext([]) as pending, cuda_numerics(dev):
             for step in progress(range(start, cfg.steps + 1), desc="train", total=cfg.steps, initial=start - 1):
                 in_step = True
                 loss = _train_step(model, opt, samples, cfg, g, weight, step)
@@ -224,17 +224,6 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     return model.cpu().eval(), [r[2] for r in rows]
 
 
-def fit_numerics(dev: torch.device):
-    """The numerics a fit on ``dev`` runs under: on CUDA, cuDNN's deterministic convolutions in
-    full float32 (no TF32, whose 10-bit mantissa moved the third step's loss by 1.5e-4 on an
-    H200) and without autotuning, so every run picks the same kernels; the bilinear
-    upsampling's and max-pooling's backward passes still add with atomics, so two CUDA fits can
-    differ in the last bits. On the CPU nothing changes."""
-    if dev.type != "cuda":
-        return nullcontext()
-    return torch.backends.cudnn.flags(enabled=True, benchmark=False, deterministic=True, allow_tf32=False)
-
-
 def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int,
                 curve: Curve | None = None, progress: Callable = lambda it, **kw: it) -> TinyUNet:
     """Stochastic weight averaging after a fit (Izmailov et al. 2018; densely, every step, as
@@ -254,7 +243,7 @@ def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig
     avg = AveragedModel(net, use_buffers=True)  # the first update sets it to the weights of that step
     opt = torch.optim.Adam(net.parameters(), lr=cfg.average_lr)
     weight = class_weights(samples).to(dev)
-    with fit_numerics(dev):
+    with cuda_numerics(dev):
         for step in progress(range(1, cfg.average_steps + 1), desc=f"average fit {seed}", total=cfg.average_steps):
             for group in opt.param_groups:
                 group["lr"] = cfg.average_lr * min(1.0, step / max(cfg.average_warmup, 1))

@@ -311,7 +311,8 @@ def test_a_fit_on_cuda_starts_sees_and_ends_as_on_the_cpu(tmp_path):
     print(f"two CUDA fits from one seed: largest weight difference {diff:.3g}")
     rgb = np.random.default_rng(0).integers(0, 256, (30, 41, 3), dtype=np.uint8)
     on_cpu = class_probs(model, rgb, 41)
-    np.testing.assert_allclose(class_probs(copy.deepcopy(model).cuda(), rgb, 41), on_cpu, atol=1e-4)
+    # full float32 on the card (no TF32, drawer_lib.devices.cuda_numerics): float32 rounding apart
+    np.testing.assert_allclose(class_probs(copy.deepcopy(model).cuda(), rgb, 41), on_cpu, atol=1e-5)
     avg = average_fit(model, samples, dataclasses.replace(cfg, average_steps=12, average_warmup=4), seed=3)
     assert all(p.device.type == "cpu" for p in avg.parameters()) and pixel_accuracy(avg, samples) > 0.9
     state = tmp_path / "0.pt"
