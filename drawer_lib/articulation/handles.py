@@ -20,6 +20,8 @@ if TYPE_CHECKING:
     from drawer_lib.articulation.rectify import RectifiedFront
 
 Candidates = list[list[tuple[np.ndarray, float]]]  # per front: [(points [M, 3], weight)], heaviest first
+RUNNER_UP_NEAR = 0.8  # a second pull weighing this share of the chosen one's, elsewhere on the front, is near
+RUNNER_UP_APART = 0.25  # "elsewhere": centres this share of the front's width or height apart
 
 
 def handle_clusters(points: Float[np.ndarray, "N 3"], radius: float, min_points: int) -> list[np.ndarray]:
@@ -226,18 +228,46 @@ def colour_handle(front: Front, rf: "RectifiedFront", cfg: "RectifyConfig") -> n
     return grid_points(front, uu[sl][cells], vv[sl][cells])
 
 
+def unit_place(front: Front, pts: Float[np.ndarray, "M 3"]) -> tuple[float, float]:
+    """The median of ``pts`` in the front's unit square (a_u from its left edge, a_v from its
+    bottom edge; clipped to [0, 1])."""
+    rel = pts - np.asarray(front.center)
+    hw, hh = front.size[0] / 2, front.size[1] / 2
+    a_u = float(np.clip((np.median(rel @ np.asarray(front.u)) + hw) / max(2 * hw, 1e-9), 0, 1))
+    a_v = float(np.clip((np.median(rel @ front.v) + hh) / max(2 * hh, 1e-9), 0, 1))
+    return a_u, a_v
+
+
+def runner_up(front: Front, cands: list[tuple[np.ndarray, float]], chosen: np.ndarray | None) -> dict | None:
+    """Whether the choice of ``front``'s handle had a margin: the candidate after the chosen one
+    (``cands`` heaviest first; ``chosen``: the points of the one taken, as the list holds them)
+    when it weighs at least :data:`RUNNER_UP_NEAR` of it and its centre lies more than
+    :data:`RUNNER_UP_APART` of the front's width or height from the chosen one's, so that
+    taking it would read another hinge side or kind: ``{"ratio", "a_u", "a_v"}`` (its weight
+    over the chosen one's, its place in the unit square); None otherwise. The weights are sums
+    of cell rates, which a view's masks moving by a pixel, or the rectangle by a few
+    millimetres, change by several per cent."""
+    i = next((i for i, (p, _) in enumerate(cands) if p is chosen), None)
+    if i is None or i + 1 >= len(cands) or cands[i][1] <= 0:
+        return None
+    (p1, w1), (p2, w2) = cands[i], cands[i + 1]
+    if w2 < RUNNER_UP_NEAR * w1:
+        return None
+    (u1, v1), (u2, v2) = unit_place(front, p1), unit_place(front, p2)
+    if abs(u2 - u1) <= RUNNER_UP_APART and abs(v2 - v1) <= RUNNER_UP_APART:
+        return None
+    return {"ratio": round(w2 / w1, 3), "a_u": round(u2, 3), "a_v": round(v2, 3)}
+
+
 def describe_handle(front: Front, pts: np.ndarray | None, source: str, cfg: HandlesConfig) -> Handle | None:
     """The handle's place (median of its points [M, 3] in the front's unit square) and shape
     (``extent_percentile`` extents: round when the longer is below ``round_aspect`` x the
     shorter + ``round_slack``)."""
     if pts is None:
         return None
-    c, u, v = np.asarray(front.center), np.asarray(front.u), front.v
-    hw, hh = front.size[0] / 2, front.size[1] / 2
-    rel = pts - c
-    pu, pv = rel @ u, rel @ v
-    a_u = float(np.clip((np.median(pu) + hw) / max(2 * hw, 1e-9), 0, 1))
-    a_v = float(np.clip((np.median(pv) + hh) / max(2 * hh, 1e-9), 0, 1))
+    rel = pts - np.asarray(front.center)
+    pu, pv = rel @ np.asarray(front.u), rel @ front.v
+    a_u, a_v = unit_place(front, pts)
     lo, hi = cfg.extent_percentile, 100 - cfg.extent_percentile
     eu = np.percentile(pu, hi) - np.percentile(pu, lo)
     ev = np.percentile(pv, hi) - np.percentile(pv, lo)
@@ -269,7 +299,7 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
                   edge_length: float, cfg: HandlesConfig, edge_frac: float, stack_gap: float,
                   handle_hits: np.ndarray | None = None, face_views: np.ndarray | None = None,
                   image_cells: tuple[np.ndarray, np.ndarray, float, int] | None = None,
-                  colour: list[np.ndarray | None] | None = None
+                  colour: list[np.ndarray | None] | None = None, near: dict[int, dict] | None = None
                   ) -> tuple[list[Handle | None], list[tuple[int, int, str]]]:
     """Each front's handle (or None) from both kinds of evidence, the masks' first; the split
     and the stacked pulls resolved (:func:`resolve_stacked_pulls`, when ``cfg.stacked_pulls``).
@@ -284,7 +314,8 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
     before the mesh's protrusions. Returns (handle per front, [(front that gave up a mask
     candidate, front that took it, why: a format string for the taker's segment id)]): a pull
     split between side-by-side fronts (:func:`resolve_split_pulls`, ``cfg.split_pulls``) is
-    resolved first, then the stacked ones."""
+    resolved first, then the stacked ones. ``near``: gets, per front whose masks' handle was
+    chosen without a margin, :func:`runner_up`'s record."""
     geo = [protrusions(f, mesh_pts, pt_normal, cfg) for f in fronts]
     geo_pts = np.concatenate(geo) if geo else np.zeros((0, 3))
     by_geo = heaviest(handle_candidates(fronts, geo_pts, cfg, cfg.geo_radius, cfg.geo_min_points))
@@ -303,6 +334,11 @@ def front_handles(fronts: list[Front], mesh_pts: np.ndarray, pt_normal: np.ndarr
                                                  cfg.stacked_min_overlap)
     else:
         by_mask, gave_up = heaviest(mask_cands), []
+    if near is not None:
+        for k, (f, c, m) in enumerate(zip(fronts, mask_cands, by_mask)):
+            r = runner_up(f, c, m) if m is not None else None
+            if r is not None:
+                near[k] = r
     gave = ([(a, b, f"the pull it shared with segment {{}} reaches {100 * d:.1f} cm deeper into that front, "
                     "which took it") for a, b, d in split]
             + [(a, b, "the pull it shared with segment {} went there") for a, b in gave_up])

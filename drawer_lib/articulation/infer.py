@@ -222,10 +222,11 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         image_cells = (cells, rates, 1.5 * rc.res, rc.min_cells)
         if rc.colour_handles and any(v.image is not None for v in views):
             colour = [colour_handle(f, rf, rc) for f, rf in zip(fronts, rfs)]
+    near_handles: dict[int, dict] = {}  # fronts whose pull was chosen over a second one nearly as heavy
     handles, gave_up = front_handles(fronts, mesh_pts, pt_normal, np.asarray(mesh.triangles_center), edge,
                                      cfg.handles, cfg.types.edge_frac,
                                      max(cfg.fronts.shared_edge_gap, cfg.handles.max_gap), handle_hits, face_views,
-                                     image_cells, colour)
+                                     image_cells, colour, near=near_handles)
     seg_pts = [piece_points(np.asarray(mesh.triangles_center)[s.faces], f, "piece" in info) for s, f, info in fits]
     partner = sliding_partners(fronts, handles, cfg.joints, seg_pts)
     floor_z = float(np.percentile(np.asarray(mesh.vertices)[:, 2], 1.0)) if len(mesh.vertices) else 0.0
@@ -236,7 +237,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     ff = cfg.false_fronts
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
-        terms = {}
+        terms = {"near_handle": near_handles[k]} if k in near_handles else {}
         is_flanked = False
         if rfs is not None and ff.enabled and rfs[k].rgb is not None:
             border = {"lines": border_lines(fr, rfs[k], cfg.split, ff.line_slack),
@@ -276,7 +277,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         pair = (pair_of_doors(h, fr.size, terms["excluded"], cfg.types)
                 if "excluded" in terms and k not in partner else None)
         gave = gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
-        near = bool(terms.get("glazed_near")) or bool(info.get("near_cuts"))  # a threshold another machine could cross
+        # a threshold another machine could cross: a glazed front's rule, a cut, the choice of the pull
+        near = bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or k in near_handles
         pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
             reason = pdec.reason + gave

@@ -45,6 +45,24 @@ def compare_parts(ref: PartsFile, other: PartsFile) -> list[dict]:
     return rows
 
 
+def stability_counts(ref: PartsFile, other: PartsFile) -> dict:
+    """How ``other``'s articulated parts differ from ``ref``'s, matched on their fronts as the
+    articulation metrics match (:func:`compare_parts`): ``n_ref``, ``n_other``, ``kept`` (a part
+    of ``other`` on the same front, of the same kind), ``retyped`` (on the same front, another
+    kind), ``lost`` (no part of ``other`` on that front) and ``added`` (parts of ``other`` on no
+    front of ``ref``); ``n_flagged`` of ``ref``'s parts are marked ``low_margin`` and
+    ``moved_flagged`` of those were not kept (what the flag says of the parts that move)."""
+    rows = compare_parts(ref, other)
+    n_other = sum(p.articulated for p in other.parts)
+    matched = sum(r["now"] != "missed" for r in rows)
+    flagged = {p.id for p in ref.parts if p.extra.get("low_margin")}
+    return {"n_ref": len(rows), "n_other": n_other, "kept": sum(r["kept"] for r in rows),
+            "retyped": sum(not r["kept"] and r["now"] != "missed" for r in rows),
+            "lost": sum(r["now"] == "missed" for r in rows), "added": n_other - matched,
+            "n_flagged": sum(r["part"] in flagged for r in rows),
+            "moved_flagged": sum(not r["kept"] and r["part"] in flagged for r in rows)}
+
+
 def jitter_run(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, weights: dict, sigma: float, seed: int
                ) -> PartsFile:
     """The scene articulated again on a copy of ``seg_dir`` whose mesh is :func:`jitter_mesh`'d."""

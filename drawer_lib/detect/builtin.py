@@ -11,6 +11,8 @@ other.
 """
 
 import math
+import struct
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -30,6 +32,9 @@ CLASSES = ("background", "front", "edge", "handle", "object")
 BG, FRONT, EDGE, HANDLE, OBJECT = range(len(CLASSES))
 MEAN = (0.5, 0.5, 0.5)
 STD = (0.25, 0.25, 0.25)
+
+
+DECODE_BAND = 1e-3  # a region's decision this close to its threshold (in probability) is listed as near
 
 
 def _block(cin: int, cout: int) -> nn.Sequential:
@@ -149,12 +154,35 @@ def class_probs(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H W 
     return p.cpu().numpy()
 
 
+@torch.inference_mode()
+def float32_error(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H W 3"], size: int,
+                  min_prob: float = 1e-3) -> dict:
+    """How far this machine's float32 network lies from the same network in float64 on one
+    image, on the CPU: the log-probabilities' difference (standard deviation and largest, over
+    pixels and classes with a probability above ``min_prob``) and the probabilities' largest.
+    Another machine's float32 differs from this one's by about as much: the scale of
+    ``detect.builtin.logit_jitter`` that matches it."""
+    import copy
+
+    h, w = working_shape(*rgb.shape[:2], size)
+    x = normalise(rgb)[None]
+    if (h, w) != rgb.shape[:2]:
+        x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
+    m32 = copy.deepcopy(model).cpu().float()
+    a = torch.log_softmax(m32(x)[0], 0).double()
+    b = torch.log_softmax(m32.double()(x.double())[0], 0)
+    sel = b.exp() > min_prob
+    d = (a - b)[sel]
+    return {"logp_sd": float(d.std()), "logp_max": float(d.abs().max()), "p_max": float((a.exp() - b.exp()).abs().max())}
+
+
 def model_device(model: nn.Module) -> torch.device:
     """The device of ``model``'s first parameter (a network on one device)."""
     return next(model.parameters()).device
 
 
-def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig) -> list[Detection]:
+def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig, near: list[dict] | None = None
+                     ) -> list[Detection]:
     """Instance masks (at the probabilities' size) from per-pixel class probabilities.
 
     Fronts: markers are the connected regions of sure front pixels (P(front) > 0.5 and
@@ -170,7 +198,14 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
     regions (``two_regions``). A front keeps its pixels but
     its handle's, has at least ``min_area_px`` and a mean P(front) + P(edge) of at least
     ``min_score``. Handles and objects: connected regions of their class (at least a
-    quarter of ``min_area_px`` and ``min_area_px``). Scores are mean probabilities."""
+    quarter of ``min_area_px`` and ``min_area_px``). Scores are mean probabilities.
+
+    ``near``: when given, every decision about a whole region whose value lies within
+    :data:`DECODE_BAND` of its threshold is appended to it, as ``{"step": "merge" | "merge_band"
+    | "score", "margin": value - threshold}`` (``"label"`` too for a score): a boundary's mean
+    P(edge) against ``merge_edge`` (or ``merge_edge_band``), a region's score against
+    ``min_score``, kept or not. Another machine's numerics could take such a decision the other
+    way. (The per-pixel thresholds move a mask by a pixel where they flip, and are not listed.)"""
     from skimage.segmentation import watershed
 
     cls = prob.argmax(0)
@@ -194,7 +229,7 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
             elif cfg.merge_edge_band > cfg.merge_edge:  # two_regions
                 carried, limit = np.ones(int(lab.max()) + 1, np.int64), 2
             lab = merge_weak_boundaries(lab, prob[EDGE], cfg.merge_edge, band_max=cfg.merge_edge_band,
-                                        carried=carried, limit=limit)
+                                        carried=carried, limit=limit, near=near)
         lab[cls == HANDLE] = 0  # a front's mask leaves its handle out, as a detector's does
         pf = prob[FRONT] + prob[EDGE]
         areas = np.bincount(lab.ravel())
@@ -203,6 +238,7 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
                 continue
             m = lab == i
             score = float(pf[m].mean())
+            _note_near(near, "score", score, cfg.min_score, label="front")
             if score >= cfg.min_score:
                 dets.append(Detection(m, "front", score))
     for c, label, min_area in ((HANDLE, "handle", max(1, cfg.min_area_px // 4)), (OBJECT, "object", cfg.min_area_px)):
@@ -215,14 +251,21 @@ def decode_instances(prob: Float[np.ndarray, "C h w"], cfg: BuiltinDetectConfig)
                 continue
             m = comp == i
             score = float(prob[c][m].mean())
+            _note_near(near, "score", score, cfg.min_score, label=label)
             if score >= cfg.min_score:
                 dets.append(Detection(m, label, score))
     return dets
 
 
+def _note_near(near: list[dict] | None, step: str, value: float, threshold: float, **extra) -> None:
+    """Append ``step``'s decision to ``near`` when ``value`` lies within :data:`DECODE_BAND` of ``threshold``."""
+    if near is not None and abs(value - threshold) < DECODE_BAND:
+        near.append({"step": step, "margin": round(value - threshold, 6), **extra})
+
+
 def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray, "h w"], max_mean: float, *,
-                          band_max: float = 0.0, carried: Int[np.ndarray, "n"] | None = None, limit: int = 1
-                          ) -> Int[np.ndarray, "h w"]:
+                          band_max: float = 0.0, carried: Int[np.ndarray, "n"] | None = None, limit: int = 1,
+                          near: list[dict] | None = None) -> Int[np.ndarray, "h w"]:
     """``lab`` (0 background, regions 1..n) with every two 4-adjacent regions whose shared
     boundary has a mean edge probability below ``max_mean`` relabelled as one (transitively;
     the merged region keeps the smaller label). A boundary pixel pair's value is the higher of
@@ -252,6 +295,10 @@ def merge_weak_boundaries(lab: Int[np.ndarray, "h w"], p_edge: Float[np.ndarray,
     pairs, inv = np.unique(key, return_inverse=True)
     mean = np.bincount(inv, weights=np.concatenate(vals)) / np.bincount(inv)
     band = band_max if carried is not None else max_mean  # no counts: the plain threshold
+    for v in mean:
+        _note_near(near, "merge", float(v), max_mean)
+        if band > max_mean:
+            _note_near(near, "merge_band", float(v), band)
     if carried is not None and len(carried) != n:
         raise ValueError(f"merge_weak_boundaries: carried has {len(carried)} entries, labels 0..{n - 1}")
     # union-find over the few region pairs (tens), weakest boundary first (ties by pair key); a
@@ -309,6 +356,18 @@ def resize_mask(m: np.ndarray, H: int, W: int) -> np.ndarray:
     return m[ii[:, None], jj[None, :]]
 
 
+def jitter_logits(prob: Float[np.ndarray, "C h w"], sigma: float, seed: int) -> Float[np.ndarray, "C h w"]:
+    """``prob`` with Gaussian noise of ``sigma`` added to its log-probabilities and normalised
+    again (a probability p_c moves by p_c (dz_c - sum_k p_k dz_k) for small noise dz: below
+    sigma / 2 in standard deviation): what another machine's numerics might change, for
+    stability studies (``detect.builtin.logit_jitter``)."""
+    rng = np.random.default_rng(seed)
+    logit = np.log(np.clip(prob, 1e-30, None)).astype(np.float64) + rng.normal(0.0, sigma, prob.shape)
+    logit -= logit.max(0, keepdims=True)
+    e = np.exp(logit)
+    return (e / e.sum(0, keepdims=True)).astype(prob.dtype)
+
+
 class BuiltinDetector:
     """The trained network with its decoding, as the ``detect`` stage runs it."""
 
@@ -319,7 +378,12 @@ class BuiltinDetector:
         files = [str(w) for w in weight_files(weights)]
         self.sources = {"weights": files[0] if len(files) == 1 else files}
 
-    def __call__(self, rgb: np.ndarray) -> list[Detection]:
+    def __call__(self, rgb: np.ndarray, near: list[dict] | None = None) -> list[Detection]:
+        """The detections of one image; ``near``: :func:`decode_instances`'s."""
         H, W = rgb.shape[:2]
-        dets = decode_instances(class_probs(self.model, rgb, self.cfg.working_size), self.cfg)
+        prob = class_probs(self.model, rgb, self.cfg.working_size)
+        if self.cfg.logit_jitter > 0:  # seeded by the image and sigma: a view is jittered alike in every run
+            seed = zlib.crc32(struct.pack("<d", self.cfg.logit_jitter), zlib.crc32(np.ascontiguousarray(rgb).tobytes()))
+            prob = jitter_logits(prob, self.cfg.logit_jitter, seed)
+        dets = decode_instances(prob, self.cfg, near)
         return [Detection(resize_mask(d.mask, H, W), d.label, d.score) for d in dets]

@@ -1,6 +1,7 @@
 """Configs of the ``detect`` and ``priors`` stages (conf/detect/, conf/priors/) and of the built-in
 detector's training (conf/detector/). Sizes in pixels."""
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -52,8 +53,13 @@ class BuiltinDetectConfig:
     merge_edge: float = 0.5
     merge_edge_band: float = 0.0  # above merge_edge: boundaries up to this merge too, within merge_band_limit
     merge_band_limit: str = "one_handle"  # one_handle | two_regions: what a front merged in the band may hold
+    # for stability studies only: Gaussian noise of this sigma on the network's log-probabilities
+    # before decoding (what another machine's numerics might change; 0 in every real run)
+    logit_jitter: float = 0.0
 
     def __post_init__(self):
+        if not (self.logit_jitter >= 0 and math.isfinite(self.logit_jitter)):
+            raise ConfigError(f"detect.builtin.logit_jitter = {self.logit_jitter}: must be a finite value >= 0")
         if self.merge_band_limit not in ("one_handle", "two_regions"):
             raise ConfigError(f"detect.builtin.merge_band_limit = {self.merge_band_limit!r}: one_handle or two_regions")
         for k in ("edge_max", "min_score", "merge_edge", "merge_edge_band"):

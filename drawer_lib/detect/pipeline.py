@@ -95,11 +95,17 @@ def run_detect(cfg: DetectConfig, cap: Capture, weights: Path | Sequence[Path], 
     det = make_detector(cfg, weights)
     out = run.out("detections")
     frames, counts = {}, {"front": 0, "drawer": 0, "door": 0, "handle": 0, "object": 0}
+    near: dict[str, list[dict]] = {}  # the built-in decoding's decisions near their thresholds, per frame
     t0 = time.perf_counter()
     for i in run.progress(range(len(cap.frames)), desc=cfg.model, total=len(cap.frames)):
         f = cap.frames[i]
         rgb = cap.image(i)
-        lab, rows = paint_detections(det(rgb), rgb.shape[:2])
+        if cfg.model == "builtin":
+            near[stems[i]] = []
+            dets = det(rgb, near=near[stems[i]])
+        else:
+            dets = det(rgb)
+        lab, rows = paint_detections(dets, rgb.shape[:2])
         write_u16(out / f"{stems[i]}.png", lab)
         write_json(out / f"{stems[i]}.json", rows, indent=None)
         frames[f.file_path] = {"detections_path": f"{out.name}/{stems[i]}.png"}
@@ -110,8 +116,30 @@ def run_detect(cfg: DetectConfig, cap: Capture, weights: Path | Sequence[Path], 
     write_overlay(index, "detect", cfg.model, {"detections": {"has": True, "details": details}}, frames)
     m.update(has_detections=True, s_per_frame=round(s_per_frame, 4),
              **{f"{k}_per_frame": round(v / max(len(cap.frames), 1), 3) for k, v in counts.items() if v})
+    if cfg.model == "builtin":
+        m.update(near_summary(near))
     m.update(_score(cap, out, stems, run))
     return m
+
+
+def near_summary(near: dict[str, list[dict]]) -> dict:
+    """What the detect stage's metrics record of the built-in decoding's decisions near their
+    thresholds (``near``: per frame, :func:`~drawer_lib.detect.builtin.decode_instances`'s
+    lists): the band, how many decisions of each step and how many frames hold one, the least
+    |margin| and up to ten frames with the most.
+
+    >>> near_summary({"a": [{"step": "merge", "margin": -2e-4}], "b": []})["near_decisions"]
+    {'merge': 1, 'merge_band': 0, 'score': 0}
+    """
+    from drawer_lib.detect.builtin import DECODE_BAND
+
+    rows = [r for v in near.values() for r in v]
+    worst = sorted((s for s in near if near[s]), key=lambda s: (-len(near[s]), s))[:10]
+    return {"near_band": DECODE_BAND,
+            "near_decisions": {k: sum(r["step"] == k for r in rows) for k in ("merge", "merge_band", "score")},
+            "near_frames": sum(bool(v) for v in near.values()),
+            "near_least_margin": min((abs(r["margin"]) for r in rows), default=None),
+            "near_by_frame": {s: near[s] for s in worst}}
 
 
 def _score(cap: Capture, det_dir: Path, stems: list[str], run: StageRun) -> dict:

@@ -11,8 +11,9 @@ import trimesh
 from drawer_lib.articulation.config import ArticulateConfig, FrontsConfig, HandlesConfig, TypesConfig
 from drawer_lib.articulation.estimators import get_estimator
 from drawer_lib.articulation.fronts import edge_moves, refine_with_masks, share_edges
-from drawer_lib.articulation.handles import (describe_handle, handle_candidates, handle_clusters, heaviest,
-                                             rect_distance, resolve_split_pulls, resolve_stacked_pulls)
+from drawer_lib.articulation.handles import (RUNNER_UP_NEAR, describe_handle, handle_candidates, handle_clusters,
+                                             heaviest, rect_distance, resolve_split_pulls, resolve_stacked_pulls,
+                                             runner_up)
 from drawer_lib.articulation.infer import infer_parts
 from drawer_lib.articulation.decide import decide_by_handle
 from drawer_lib.errors import ConfigError, InputError
@@ -349,6 +350,51 @@ def test_a_pull_split_between_side_by_side_fronts_goes_whole_to_the_front_it_rea
                              0.3, 0.03, image_cells=(pull, np.full(len(pull), 0.5), R, 3))
     assert hs[0] is None and hs[1].a_u < 0.1 and [(a, b) for a, b, _ in gave] == [(0, 1)]
     assert "deeper" in gave[0][2].format(7) and "segment 7" in gave[0][2].format(7)
+
+
+def test_a_second_pull_nearly_as_heavy_elsewhere_on_the_front_is_listed():
+    """``runner_up``: the candidate after the chosen one, listed when it weighs at least
+    RUNNER_UP_NEAR of it and lies more than a quarter of the front away (another hinge side);
+    a lighter one, or a piece of the same pull, is not."""
+    from drawer_lib.io.parts import Front
+
+    f = Front((0.25, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.5, 0.7))  # x 0.00-0.50
+    right_bar = np.array([[0.46, Y - 0.02, z] for z in np.linspace(0.4, 0.55, 10)])
+    left_bar = right_bar * [0, 1, 1] + [0.04, 0, 0]
+    near_piece = right_bar + [0, 0, 0.1]  # the same edge, 10 cm higher: 0.14 of the height away
+    for other, w, want in ((left_bar, RUNNER_UP_NEAR + 0.05, True), (left_bar, RUNNER_UP_NEAR - 0.05, False),
+                           (near_piece, 0.95, False)):
+        cands = [(right_bar, 1.0), (other, w)]
+        r = runner_up(f, cands, right_bar)
+        assert (r is not None) == want
+        if want:
+            assert r == {"ratio": pytest.approx(w, abs=1e-3), "a_u": 0.08, "a_v": pytest.approx(0.536, abs=1e-3)}
+    assert runner_up(f, [(right_bar, 1.0)], right_bar) is None  # no second candidate
+    assert runner_up(f, [(left_bar, 1.0), (right_bar, 0.9)], right_bar) is None  # the last one was chosen
+    assert runner_up(f, [(right_bar, 1.0), (left_bar, 0.9)], None) is None
+
+
+@pytest.mark.parametrize("left_hits, near", [(7, True), (4, False)])
+def test_a_front_whose_pull_was_chosen_over_one_nearly_as_heavy_is_marked_low_margin(left_hits, near):
+    """Two vertical bars, at the right edge (in 8 of 10 views' handle masks) and at the left
+    edge (in 7, or 4): the right one is the pull (hinged left) either way; with 7 the choice
+    had no margin (7/8 of the weight), and the front is listed ``near_handle`` and flagged."""
+    panel = box([X0, Y, Z0], [X1, Y + 0.019, Z1]).subdivide().subdivide().subdivide()
+    wall = box([-0.5, 0.0, 0.0], [1.0, 0.02, 1.2])
+    bars = [box([x - 0.006, Y - 0.035, 0.62], [x + 0.006, Y - 0.023, 0.78]).subdivide().subdivide().subdivide()
+            for x in (0.455, 0.045)]  # fine enough that each bar's faces are one cluster
+    mesh = trimesh.util.concatenate([panel, wall, *bars])
+    n, fc = np.asarray(mesh.face_normals), np.asarray(mesh.triangles_center)
+    outer = np.nonzero((n[:, 1] < -0.99) & (np.abs(fc[:, 1] - Y) < 1e-6))[0]
+    proud = fc[:, 1] < Y - 0.02
+    hits = np.where(proud & (fc[:, 0] > 0.25), 8, np.where(proud, left_hits, 0))
+    parts, rep = infer_parts(mesh, [segment(mesh, outer)], CAMS, ArticulateConfig(), hits,
+                             face_views=np.full(len(fc), 10))
+    (p,), row = parts, next(r for r in rep if r.get("part") == parts[0].id)
+    assert p.kind == "revolute" and p.extra["hinge"] == "left"
+    assert ("near_handle" in row) == near and (not near or row["low_margin"] and p.extra["low_margin"])
+    if near:
+        assert row["near_handle"]["ratio"] == pytest.approx(7 / 8, abs=0.02) and row["near_handle"]["a_u"] < 0.2
 
 
 def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle():

@@ -1,11 +1,13 @@
 """The decision-stability check's parts: the mesh jitter and the comparison of two part sets."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
 
 from drawer_lib.articulation.joints import hinge_axis
-from drawer_lib.articulation.robustness import compare_parts, jitter_mesh
+from drawer_lib.articulation.robustness import compare_parts, jitter_mesh, stability_counts
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile
 
 A = Front((1.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.7))
@@ -39,3 +41,15 @@ def test_compare_parts_names_flips_and_misses():
     rows = {r["part"]: r for r in compare_parts(ref, flipped)}
     assert rows["door_0"]["now"] == "door_right" and not rows["door_0"]["kept"] and rows["door_0"]["margin"] == 3.0
     assert rows["drawer_0"]["now"] == "missed"
+
+
+def test_stability_counts_add_up_kept_retyped_lost_and_added():
+    C = Front((3.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.5))
+    flagged = dataclasses.replace(_drawer(B), extra={"family": "drawer", "low_margin": True})
+    ref = PartsFile((_door(A, "left"), flagged))
+    assert stability_counts(ref, ref) == {"n_ref": 2, "n_other": 2, "kept": 2, "retyped": 0, "lost": 0, "added": 0,
+                                          "n_flagged": 1, "moved_flagged": 0}
+    other = PartsFile((_door(A, "right"), _drawer(C, "drawer_9")))  # A's hinge flipped, B gone, C new
+    assert stability_counts(ref, other) == {"n_ref": 2, "n_other": 2, "kept": 0, "retyped": 1, "lost": 1, "added": 1,
+                                            "n_flagged": 1, "moved_flagged": 1}
+    assert stability_counts(PartsFile(()), other)["added"] == 2

@@ -17,6 +17,7 @@ from helpers import run_stage, scene_paths
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.detect.builtin import (
     CLASSES,
+    DECODE_BAND,
     EDGE,
     FRONT,
     HANDLE,
@@ -25,8 +26,10 @@ from drawer_lib.detect.builtin import (
     TinyUNet,
     class_probs,
     decode_instances,
+    float32_error,
     handles_per_region,
     merge_weak_boundaries,
+    jitter_logits,
     normalise,
     load_detector,
     resize_mask,
@@ -129,6 +132,69 @@ def test_a_weak_boundary_merges_only_while_the_pair_carries_one_handle():
         merge_weak_boundaries(lab, pe, 0.5, band_max=0.7, carried=np.zeros(3, np.int64))
     with pytest.raises(ConfigError, match="merge_band_limit"):
         BuiltinDetectConfig(merge_band_limit="three")
+
+
+def test_decisions_near_their_thresholds_are_listed_with_their_signed_margin():
+    """A boundary whose mean P(edge) lies within DECODE_BAND of ``merge_edge`` (either side) and
+    a region whose score lies that close to ``min_score`` are listed, with value - threshold;
+    a clear margin is not; no list, nothing recorded and the same decoding."""
+    lab = np.zeros((6, 9), np.int64)
+    lab[:, 0:3], lab[:, 3:6], lab[:, 6:9] = 1, 2, 3
+    pe = np.zeros((6, 9))
+    pe[:, 2:4] = 0.5 + 0.4 * DECODE_BAND  # 1|2: merged (below 0.5 + ...), by less than the band ...
+    pe[:, 5:7] = 0.5 - 0.4 * DECODE_BAND  # 2|3: ... and one kept apart (0.5 - ... is below): listed both
+    near: list[dict] = []
+    out = merge_weak_boundaries(lab, pe, 0.5 + 0.1 * DECODE_BAND, near=near)  # the threshold between them
+    assert len(np.unique(out)) == 2 and out[0, 0] != out[0, -1]  # 2|3 merged, 1|2 not
+    assert sorted(round(r["margin"] / DECODE_BAND, 3) for r in near) == [-0.5, 0.3]
+    assert {r["step"] for r in near} == {"merge"}
+    assert np.array_equal(out, merge_weak_boundaries(lab, pe, 0.5 + 0.1 * DECODE_BAND))
+    clear: list[dict] = []
+    merge_weak_boundaries(lab, pe, 0.5 + 3 * DECODE_BAND, near=clear)
+    assert clear == []
+    band: list[dict] = []  # with the handle-counting band: its upper threshold too
+    merge_weak_boundaries(lab, pe, 0.3, band_max=0.5 + 0.1 * DECODE_BAND, carried=np.zeros(4, np.int64), near=band)
+    assert [r["step"] for r in band] == ["merge_band", "merge_band"]
+    # a front's score: P(front) + P(edge) averages to min_score + 0.2 band
+    cls = np.zeros((30, 30), np.int64)
+    cls[5:25, 5:25] = FRONT
+    p = _probs(cls)
+    cfg = BuiltinDetectConfig(min_area_px=20, min_score=0.5, erode_px=1, min_seed_px=5, merge_edge=0.0)
+    front = [d for d in decode_instances(p, cfg) if d.label == "front"][0]
+    at = float(front.score)
+    for shift, listed in ((0.2, True), (-0.2, True), (3.0, False)):
+        near = []
+        dets = decode_instances(p, dataclasses.replace(cfg, min_score=at - shift * DECODE_BAND), near)
+        assert bool(near) == listed and len([d for d in dets if d.label == "front"]) == (shift > 0)
+        if listed:
+            assert near == [{"step": "score", "margin": pytest.approx(shift * DECODE_BAND, abs=1e-6), "label": "front"}]
+
+
+def test_logit_jitter_moves_probabilities_by_about_its_sigma_and_is_seeded():
+    rng = np.random.default_rng(0)
+    p = rng.dirichlet(np.ones(len(CLASSES)), (20, 30)).transpose(2, 0, 1).astype(np.float32)
+    for sigma in (1e-5, 1e-3):
+        q = jitter_logits(p, sigma, seed=3)
+        assert q.dtype == p.dtype and q.shape == p.shape
+        np.testing.assert_allclose(q.sum(0), 1.0, atol=1e-6)
+        d = q - p  # dp_c = p_c (dz_c - sum_k p_k dz_k): below sigma / 2 in standard deviation
+        assert 0 < np.abs(d).max() < 2 * sigma and 0.05 * sigma < d.std() < 0.5 * sigma
+        assert np.array_equal(q, jitter_logits(p, sigma, seed=3)) and not np.array_equal(q, jitter_logits(p, sigma, 4))
+    assert np.abs(jitter_logits(p, 0.0, 0) - p).max() < 1e-6
+    with pytest.raises(ConfigError, match="logit_jitter"):
+        BuiltinDetectConfig(logit_jitter=-1e-3)
+    with pytest.raises(ConfigError, match="logit_jitter"):
+        BuiltinDetectConfig(logit_jitter=float("nan"))
+
+
+def test_float32_error_is_float32_rounding_and_leaves_the_model_as_it_was():
+    torch.manual_seed(0)
+    model = TinyUNet(4).eval()
+    before = {k: v.clone() for k, v in model.state_dict().items()}
+    rgb = np.random.default_rng(0).integers(0, 256, (30, 41, 3), dtype=np.uint8)
+    e = float32_error(model, rgb, 41)
+    assert 0 < e["logp_sd"] <= e["logp_max"] < 1e-4 and 0 < e["p_max"] < 1e-5
+    assert all(v.dtype == torch.float32 and torch.equal(v, before[k]) for k, v in model.state_dict().items())
 
 
 def test_handles_are_counted_in_the_region_holding_most_of_their_pixels():
@@ -588,7 +654,10 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
         lab, rows = cap.detections(i)
         assert sorted(np.unique(lab[lab > 0]).tolist()) == [r["id"] for r in rows]
         assert {r["label"] for r in rows} <= {"front", "handle", "object"}
-    assert json.loads(sp.metrics("detect").read_text())["model"] == "builtin"
+    md = json.loads(sp.metrics("detect").read_text())
+    assert md["model"] == "builtin" and md["near_band"] == DECODE_BAND  # decisions near their thresholds, counted
+    assert set(md["near_decisions"]) == {"merge", "merge_band", "score"} and 0 <= md["near_frames"] <= len(cap.frames)
+    assert sum(map(len, md["near_by_frame"].values())) <= sum(md["near_decisions"].values())
     if not torch.cuda.is_available():  # a device this machine lacks: one line naming the key, nothing lost
         before = sp.metrics("detect").read_text()
         r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.device=cuda")
