@@ -14,6 +14,7 @@ Also the reference's decoding decisions near their thresholds (its ``detect`` me
     python scripts/bench_detect.py --split hand_tune --detect builtin --out OUT --tag j0 --set detect.builtin.logit_jitter=0
     python scripts/bench_detect.py --split hand_tune --detect builtin --out OUT --tag j3 --set detect.builtin.logit_jitter=1e-3
     python scripts/detect_stability.py OUT/hand_tune --ref j0 --tags j3 [--json rows.json]
+    python scripts/detect_stability.py OUT/train --ref nh --ref-detect gd --tags j4   # nh: --from-tag gd
 
 ``--numerics CAPTURE...`` with ``--weights``: how far the network's float32 log-probabilities
 lie from float64 on every ``--every``-th view of those captures
@@ -73,14 +74,16 @@ def changed_detections(a: ScenePaths, b: ScenePaths) -> dict:
     return {"pixels_changed": diff, "pixels": total, "frames_changed": frames, "frames": len(stems)}
 
 
-def compare_kitchen(root: Path, model: str, ref: str, tag: str) -> dict:
-    """One kitchen folder's run tagged ``tag`` against its run tagged ``ref``."""
+def compare_kitchen(root: Path, model: str, ref: str, tag: str, ref_detect: str | None = None) -> dict:
+    """One kitchen folder's run tagged ``tag`` against its run tagged ``ref`` (whose detections
+    are those of the run tagged ``ref_detect`` when it reran articulate alone, ``--from-tag``)."""
     a, b = (ScenePaths(root / "by_detector", variant(model, t)) for t in (ref, tag))
-    for p in (a.parts, b.parts):
+    ad = ScenePaths(root / "by_detector", variant(model, ref if ref_detect is None else ref_detect))
+    for p in (a.parts, b.parts, ad.metrics("detect")):
         if not p.is_file():
             raise SystemExit(f"error: {p}: missing; run bench_detect with that tag first")
     return {"kitchen": root.name, "identical": a.parts.read_bytes() == b.parts.read_bytes(),
-            **stability_counts(read_parts(a.parts), read_parts(b.parts)), **changed_detections(a, b)}
+            **stability_counts(read_parts(a.parts), read_parts(b.parts)), **changed_detections(ad, b)}
 
 
 def numerics(captures: list[Path], weights: list[Path] | None, every: int) -> None:
@@ -112,6 +115,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("splits", type=Path, nargs="*", help="bench_detect split folders (OUT/<split>)")
     ap.add_argument("--ref", help="the tag of the run without jitter")
+    ap.add_argument("--ref-detect", default=None, metavar="TAG",
+                    help="the tag whose detections --ref's run read, when it reran articulate alone (--from-tag)")
     ap.add_argument("--tags", nargs="+", default=[], help="the tags of the jittered runs")
     ap.add_argument("--model", default="builtin")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
@@ -135,7 +140,7 @@ def main() -> None:
     frames = near_frames = 0
     for ks in kitchens.values():
         for k in ks:
-            mp = ScenePaths(k / "by_detector", variant(a.model, a.ref)).metrics("detect")
+            mp = ScenePaths(k / "by_detector", variant(a.model, a.ref_detect or a.ref)).metrics("detect")
             if not mp.is_file():
                 raise SystemExit(f"error: {mp}: missing; run bench_detect with --tag {a.ref} first")
             m = read_json(mp)
@@ -150,7 +155,7 @@ def main() -> None:
           "| of the moved, flagged low_margin "
           "| frames whose detections changed | their pixels changed | precision / recall |\n|---|---|---|---|---|---|---|---|---|---|---|")
     for tag in a.tags:
-        rows = [compare_kitchen(k, a.model, a.ref, tag) for ks in kitchens.values() for k in ks]
+        rows = [compare_kitchen(k, a.model, a.ref, tag, a.ref_detect) for ks in kitchens.values() for k in ks]
         tot = {c: sum(r[c] for r in rows) for c in COUNTS + ("pixels_changed", "pixels", "frames_changed", "frames")}
         sets, pr = [], []
         for split in a.splits:

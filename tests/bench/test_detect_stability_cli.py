@@ -67,6 +67,15 @@ def test_jittered_runs_against_the_reference(tmp_path):
     out = json.loads((tmp_path / "s.json").read_text())
     assert out["tags"]["j3"]["total"]["pixels_changed"] == 1 and out["near"]["decisions"]["score"] == 6
     assert [r["frames_changed"] for r in out["tags"]["j3"]["rows"]] == [0, 1, 1]
+    # a reference that reran articulate alone reads its detections from the run it came from
+    for k in range(3):
+        art = split / f"kitchen_{k}" / "by_detector"
+        (art / "builtin-a0" / "articulate").mkdir(parents=True)
+        (art / "builtin-a0" / "articulate" / "parts.json").write_bytes((art / "builtin-j0" / "articulate" / "parts.json").read_bytes())
+    r = _run(split, "--ref", "a0", "--ref-detect", "j0", "--tags", "j3")
+    assert r.returncode == 0 and "| j3 | 1e-3 | 2 / 3 | 4 / 6 | 1 | 1 | 1 | 0 / 2 | 2 / 3 |" in r.stdout
+    r = _run(split, "--ref", "a0", "--tags", "j3")
+    assert r.returncode != 0 and "builtin-a0/detect/metrics.json: missing" in r.stderr
     r = _run(split, "--ref", "j0", "--tags", "j9")
     assert r.returncode != 0 and "builtin-j9/articulate/parts.json: missing" in r.stderr
     r = _run(tmp_path / "nothing", "--ref", "j0", "--tags", "j3")
