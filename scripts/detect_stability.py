@@ -137,20 +137,24 @@ def main() -> None:
             raise SystemExit(f"error: {split}: no kitchen_* folders (a bench_detect --out <dir>/<split>)")
     out: dict = {"ref": a.ref, "near": {}, "tags": {}}
     near = {"merge": 0, "merge_band": 0, "score": 0}
-    frames = near_frames = 0
+    frames = near_frames = unrecorded = 0
     for ks in kitchens.values():
         for k in ks:
             mp = ScenePaths(k / "by_detector", variant(a.model, a.ref_detect or a.ref)).metrics("detect")
             if not mp.is_file():
                 raise SystemExit(f"error: {mp}: missing; run bench_detect with --tag {a.ref} first")
             m = read_json(mp)
+            if "near_decisions" not in m:  # detections made before the stage counted them
+                unrecorded += 1
+                continue
             for step in near:
                 near[step] += m.get("near_decisions", {}).get(step, 0)
             frames += m["n_frames"]
             near_frames += m.get("near_frames", 0)
-    out["near"] = {"decisions": near, "frames": frames, "frames_with_one": near_frames}
+    out["near"] = {"decisions": near, "frames": frames, "frames_with_one": near_frames, "unrecorded": unrecorded}
     print(f"reference {a.ref}: {sum(near.values())} decoding decisions within 0.001 of their thresholds "
-          f"({near}) in {near_frames} of {frames} frames")
+          f"({near}) in {near_frames} of {frames} frames"
+          + (f"; not recorded for {unrecorded} kitchens (their detections predate the count)" if unrecorded else ""))
     print("\n| tag | logit jitter | kitchens with identical parts | parts kept | retyped | lost | added "
           "| of the moved, flagged low_margin "
           "| frames whose detections changed | their pixels changed | precision / recall |\n|---|---|---|---|---|---|---|---|---|---|---|")

@@ -74,6 +74,10 @@ def test_jittered_runs_against_the_reference(tmp_path):
         (art / "builtin-a0" / "articulate" / "parts.json").write_bytes((art / "builtin-j0" / "articulate" / "parts.json").read_bytes())
     r = _run(split, "--ref", "a0", "--ref-detect", "j0", "--tags", "j3")
     assert r.returncode == 0 and "| j3 | 1e-3 | 2 / 3 | 4 / 6 | 1 | 1 | 1 | 0 / 2 | 2 / 3 |" in r.stdout
+    assert "not recorded" not in r.stdout
+    write_json(split / "kitchen_0" / "by_detector" / "builtin-j0" / "detect" / "metrics.json", {"n_frames": 1})
+    r = _run(split, "--ref", "j0", "--tags", "j3")  # detections from before the count: said so, not zero
+    assert r.returncode == 0 and "6 decoding decisions" in r.stdout and "not recorded for 1 kitchens" in r.stdout
     r = _run(split, "--ref", "a0", "--tags", "j3")
     assert r.returncode != 0 and "builtin-a0/detect/metrics.json: missing" in r.stderr
     r = _run(split, "--ref", "j0", "--tags", "j9")
