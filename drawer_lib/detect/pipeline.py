@@ -118,6 +118,8 @@ def run_detect(cfg: DetectConfig, cap: Capture, weights: Path | Sequence[Path], 
              **{f"{k}_per_frame": round(v / max(len(cap.frames), 1), 3) for k, v in counts.items() if v})
     if cfg.model == "builtin":
         m.update(near_summary(near))
+        if cfg.builtin.logit_jitter > 0:  # a stability study's run, not a result
+            m["logit_jitter"] = cfg.builtin.logit_jitter
     m.update(_score(cap, out, stems, run))
     return m
 

@@ -658,6 +658,11 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     assert md["model"] == "builtin" and md["near_band"] == DECODE_BAND  # decisions near their thresholds, counted
     assert set(md["near_decisions"]) == {"merge", "merge_band", "score"} and 0 <= md["near_frames"] <= len(cap.frames)
     assert sum(map(len, md["near_by_frame"].values())) <= sum(md["near_decisions"].values())
+    assert "logit_jitter" not in md
+    r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.builtin.min_score=0.0", "detect.builtin.min_area_px=1",
+                  "detect.builtin.logit_jitter=0.001")  # a stability study's run says so
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads(sp.metrics("detect").read_text())["logit_jitter"] == 0.001
     if not torch.cuda.is_available():  # a device this machine lacks: one line naming the key, nothing lost
         before = sp.metrics("detect").read_text()
         r = run_stage("detect", tmp_path, "detect.model=builtin", "detect.device=cuda")
