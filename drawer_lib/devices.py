@@ -46,10 +46,10 @@ def device_name(name: str | torch.device) -> str:
 def cuda_numerics(dev: torch.device) -> AbstractContextManager:
     """The numerics a network runs under on ``dev``, in its fit and when it is applied: on CUDA,
     cuDNN's deterministic convolutions in full float32 and without autotuning, so every run
-    picks the same kernels. cuDNN's TF32 default (a 10-bit mantissa) moved a fit's third loss by
-    1.5e-4 on an H200 and would move the detector's probabilities by as much, enough to turn a
-    decoding decision near its threshold (a merge, a front's score) on a card and not on the
-    CPU. (In a fit, the bilinear upsampling's and max-pooling's backward passes still add with
+    picks the same kernels. cuDNN's TF32 default rounds a convolution's inputs to a 10-bit
+    mantissa (about 1e-3 relative); it moved a fit's third loss by 1.5e-4 on an H200. Its effect
+    on the detector's probabilities was not measured, but it is rounding far coarser than
+    float32's, whose size already moves a part in the tuning kitchens' jitter study. (In a fit, the bilinear upsampling's and max-pooling's backward passes still add with
     atomics, so two CUDA fits can differ in the last bits.) On the CPU nothing changes.
 
     >>> import contextlib; isinstance(cuda_numerics(torch.device("cpu")), contextlib.nullcontext)

@@ -39,26 +39,20 @@ from drawer_lib.paths import ScenePaths
 COUNTS = ("n_ref", "n_other", "kept", "retyped", "lost", "added", "n_flagged", "moved_flagged")
 
 
-def label_image(d: ScenePaths, stem: str) -> np.ndarray:
-    """A frame's detections as one image of labels (0 none, 1 front, 2 handle, 3 object), so two
-    runs whose instance ids differ compare pixel by pixel."""
-    lab = read_u16(d.file("detect", "detections") / f"{stem}.png")
+def frame_detections(d: ScenePaths, stem: str) -> tuple[np.ndarray, np.ndarray]:
+    """A frame's detections, read once, in two forms that compare across runs whatever ids they
+    wrote: labels (0 none, 1 front, 2 handle, 3 object) and instance ids renumbered in the
+    order they first appear (row-major)."""
+    lab = read_u16(d.file("detect", "detections") / f"{stem}.png").astype(np.int64)
     rows = read_json(d.file("detect", "detections") / f"{stem}.json")
     code = np.zeros(int(lab.max()) + 1, np.uint8)
     for r in rows:
         code[r["id"]] = {"handle": 2, "object": 3}.get(r["label"], 1)
-    return code[lab]
-
-
-def instances(d: ScenePaths, stem: str) -> np.ndarray:
-    """A frame's instance ids renumbered in the order they first appear (row-major), so two runs
-    that cut the image into the same instances give the same array whatever ids they wrote."""
-    lab = read_u16(d.file("detect", "detections") / f"{stem}.png").astype(np.int64)
     ids, first = np.unique(lab.ravel(), return_index=True)
     order = np.zeros(int(ids.max()) + 1, np.int64)
     fg = ids > 0
     order[ids[fg]] = np.argsort(np.argsort(first[fg])) + 1
-    return order[lab]
+    return code[lab], order[lab]
 
 
 def changed_detections(a: ScenePaths, b: ScenePaths) -> dict:
@@ -67,10 +61,10 @@ def changed_detections(a: ScenePaths, b: ScenePaths) -> dict:
     stems = sorted(p.stem for p in a.file("detect", "detections").glob("*.png"))
     diff = total = frames = 0
     for s in stems:
-        x, y = label_image(a, s), label_image(b, s)
+        (x, xi), (y, yi) = frame_detections(a, s), frame_detections(b, s)
         diff += int((x != y).sum())
         total += x.size
-        frames += not np.array_equal(instances(a, s), instances(b, s))
+        frames += not np.array_equal(xi, yi)
     return {"pixels_changed": diff, "pixels": total, "frames_changed": frames, "frames": len(stems)}
 
 

@@ -46,6 +46,25 @@ def run_stage(module: str, tmp: Path, *args: str):
                           capture_output=True, text=True, timeout=600)
 
 
+def run_script(name: str, *args, timeout: int = 120):
+    """``python scripts/<name> args...`` (arguments as strings), its output captured."""
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / name), *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def door_part(pid: str, cx: float, kind: str = "revolute"):
+    """A 0.5 x 0.7 m front centred at x = ``cx`` facing -y, as a part of ``kind`` hinged on its
+    left edge (the parts the scripts' tests write as predictions and ground truth)."""
+    from drawer_lib.io.parts import Axis, Front, Part
+
+    fr = Front((cx, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.7))
+    edge = np.asarray(fr.center) - np.asarray(fr.u) * 0.25
+    return Part(pid, kind, Axis(tuple(edge), (0.0, 0.0, -1.0)), (0.0, 1.57), fr)
+
+
 NS_DIST = (-0.12, 0.03, 0.001, -0.0008)  # a barrel lens, as COLMAP's OPENCV model fits phone cameras
 
 

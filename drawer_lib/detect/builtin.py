@@ -135,17 +135,24 @@ def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsem
     return DetectorEnsemble(members).eval(), {**infos[0], "members": len(members)}
 
 
+def network_input(rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[Tensor, "1 3 h w"]:
+    """The image as the network sees it: normalised, and resized on the CPU (bilinear,
+    antialiased) so that its long side is ``size``."""
+    H, W = rgb.shape[:2]
+    h, w = working_shape(H, W, size)
+    x = normalise(rgb)[None]
+    if (h, w) != (H, W):
+        x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
+    return x
+
+
 @torch.inference_mode()
 def class_probs(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H W 3"], size: int) -> Float[np.ndarray, "C h w"]:
     """Per-class probabilities at the working size (long side ``size``), computed on the
     model's device (the image is resized on the CPU first, so only the network's numerics
     depend on it) under the fit's numerics (:func:`~drawer_lib.devices.cuda_numerics`: on
     CUDA no TF32)."""
-    H, W = rgb.shape[:2]
-    h, w = working_shape(H, W, size)
-    x = normalise(rgb)[None]
-    if (h, w) != (H, W):
-        x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
+    x = network_input(rgb, size)
     dev = model_device(model)
     with cuda_numerics(dev):
         p = torch.softmax(model(x.to(dev))[0], 0)
@@ -164,10 +171,7 @@ def float32_error(model: TinyUNet | DetectorEnsemble, rgb: UInt8[np.ndarray, "H 
     ``detect.builtin.logit_jitter`` that matches it."""
     import copy
 
-    h, w = working_shape(*rgb.shape[:2], size)
-    x = normalise(rgb)[None]
-    if (h, w) != rgb.shape[:2]:
-        x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
+    x = network_input(rgb, size)
     m32 = copy.deepcopy(model).cpu().float()
     a = torch.log_softmax(m32(x)[0], 0).double()
     b = torch.log_softmax(m32.double()(x.double())[0], 0)

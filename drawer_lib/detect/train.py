@@ -23,7 +23,7 @@ from torch.optim.swa_utils import AveragedModel
 
 from drawer_lib.bench.scenes import kitchen_scene
 from drawer_lib.config.typed import to_typed
-from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, load_detector, model_device, normalise, resize_mask, save_detector, working_shape
+from drawer_lib.detect.builtin import CLASSES, MEAN, STD, DetectorEnsemble, TinyUNet, class_probs, decode_instances, load_detector, model_device, network_input, resize_mask, save_detector, working_shape
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.data import View, render_views
 from drawer_lib.devices import cuda_numerics, device_name, torch_device
@@ -44,10 +44,9 @@ class Sample:
 def to_sample(v: View, size: int) -> Sample:
     H, W = v.classes.shape
     h, w = working_shape(H, W, size)
-    x = normalise(v.rgb)[None]
+    x = network_input(v.rgb, size)
     y = torch.as_tensor(v.classes.astype(np.int64))[None, None].float()
     if (h, w) != (H, W):
-        x = F.interpolate(x, size=(h, w), mode="bilinear", align_corners=False, antialias=True)
         y = F.interpolate(y, size=(h, w), mode="nearest")
     return Sample(x[0], y[0, 0].long())
 

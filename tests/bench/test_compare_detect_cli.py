@@ -2,11 +2,9 @@
 each one's pooled figures and the paired change; summaries of other kitchens are refused."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "compare_detect.py"
+from helpers import run_script
 
 
 def _summary(path: Path, rows: list[tuple[int, int, int, int]]) -> Path:
@@ -16,7 +14,7 @@ def _summary(path: Path, rows: list[tuple[int, int, int, int]]) -> Path:
 
 
 def _run(*args):
-    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], capture_output=True, text=True, timeout=120)
+    return run_script("compare_detect.py", *args)
 
 
 def test_pooled_figures_and_the_paired_change(tmp_path):

@@ -4,26 +4,17 @@ added, detection pixels changed, and the reference's near decisions; a missing r
 error."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
+from helpers import door_part, run_script
 
 from drawer_lib.io.images import write_json, write_u16
-from drawer_lib.io.parts import Axis, Front, Part, PartsFile, write_parts
-
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "detect_stability.py"
-
-
-def _door(pid: str, cx: float, kind: str = "revolute") -> Part:
-    fr = Front((cx, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.7))
-    edge = np.asarray(fr.center) - np.asarray(fr.u) * 0.25
-    return Part(pid, kind, Axis(tuple(edge), (0.0, 0.0, -1.0)), (0.0, 1.57), fr)
+from drawer_lib.io.parts import Part, PartsFile, write_parts
 
 
 def _run(*args):
-    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], capture_output=True, text=True, timeout=120)
+    return run_script("detect_stability.py", *args)
 
 
 def _tagged(root: Path, tag: str, parts: list[Part], lab: np.ndarray, rows: list[dict], near: dict | None = None):
@@ -48,9 +39,9 @@ def test_jittered_runs_against_the_reference(tmp_path):
     cut = lab.copy()
     cut[1:3, 3] = 2  # the front cut in two: no label changes, its instances do
     two = front + [{"id": 2, "label": "front", "score": 0.9}]
-    same = [_door("a", 0.0), _door("b", 2.0)]
+    same = [door_part("a", 0.0), door_part("b", 2.0)]
     for k, other, olab, orows in ((0, same, renumbered, [{**front[0], "id": 7}]),
-                                  (1, [_door("a", 0.0, "prismatic"), _door("c", 4.0)], moved, front),
+                                  (1, [door_part("a", 0.0, "prismatic"), door_part("c", 4.0)], moved, front),
                                   (2, same, cut, two)):
         root = split / f"kitchen_{k}"
         _tagged(root, "j0", same, lab, front, near)

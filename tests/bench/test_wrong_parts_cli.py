@@ -3,34 +3,23 @@ wrong; a folder without that run's outputs is a clear error."""
 
 import dataclasses
 import json
-import subprocess
-import sys
-from pathlib import Path
 
-import numpy as np
+from helpers import door_part, run_script
 
-from drawer_lib.io.parts import Axis, Front, Part, PartsFile, write_parts
-
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "wrong_parts.py"
-
-
-def _door(pid: str, cx: float, kind: str = "revolute") -> Part:
-    fr = Front((cx, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.5, 0.7))
-    edge = np.asarray(fr.center) - np.asarray(fr.u) * 0.25
-    return Part(pid, kind, Axis(tuple(edge), (0.0, 0.0, -1.0)), (0.0, 1.57), fr)
+from drawer_lib.io.parts import PartsFile, write_parts
 
 
 def _run(*args):
-    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], capture_output=True, text=True, timeout=120)
+    return run_script("wrong_parts.py", *args)
 
 
 def test_counts_per_split_and_the_commonest_confusion(tmp_path):
     split = tmp_path / "train"
-    flagged = dataclasses.replace(_door("a", 0.0), extra={"low_margin": True})  # right, and flagged
-    for k, pred in ((16, [_door("a", 0.0, "prismatic"), _door("b", 3.0)]), (17, [flagged])):
+    flagged = dataclasses.replace(door_part("a", 0.0), extra={"low_margin": True})  # right, and flagged
+    for k, pred in ((16, [door_part("a", 0.0, "prismatic"), door_part("b", 3.0)]), (17, [flagged])):
         root = split / f"kitchen_{k}"
         (root / "capture" / "gt").mkdir(parents=True)
-        write_parts(root / "capture" / "gt" / "parts.json", PartsFile((_door("d0", 0.0),), ()))
+        write_parts(root / "capture" / "gt" / "parts.json", PartsFile((door_part("d0", 0.0),), ()))
         (root / "by_detector" / "builtin-t" / "articulate").mkdir(parents=True)
         write_parts(root / "by_detector" / "builtin-t" / "articulate" / "parts.json", PartsFile(tuple(pred), ()))
     r = _run(split, "--tag", "t", "--json", tmp_path / "wrong.json")
@@ -52,10 +41,10 @@ def test_decisions_list_each_wrongly_typed_part_with_its_record(tmp_path):
     split = tmp_path / "train"
     root = split / "kitchen_16"
     (root / "capture" / "gt").mkdir(parents=True)
-    write_parts(root / "capture" / "gt" / "parts.json", PartsFile((_door("d0", 0.0),), ()))
+    write_parts(root / "capture" / "gt" / "parts.json", PartsFile((door_part("d0", 0.0),), ()))
     art = root / "by_detector" / "builtin-t" / "articulate"
     art.mkdir(parents=True)
-    write_parts(art / "parts.json", PartsFile((_door("drawer_0", 0.0, "prismatic"), _door("door_9", 3.0)), ()))
+    write_parts(art / "parts.json", PartsFile((door_part("drawer_0", 0.0, "prismatic"), door_part("door_9", 3.0)), ()))
     r = _run(split, "--tag", "t", "--decisions")
     assert r.returncode != 0 and "decisions.json: missing" in r.stderr
     seg = {"segment": 4, "part": "drawer_0", "size": [0.5, 0.7], "margin": 0.25, "runner_up": "door_left",
@@ -79,10 +68,10 @@ def test_missed_counts_why_each_true_part_was_not_found(tmp_path):
     split = tmp_path / "train"
     root = split / "kitchen_16"
     (root / "capture" / "gt").mkdir(parents=True)
-    write_parts(root / "capture" / "gt" / "parts.json", PartsFile((_door("d0", 0.0), _door("d1", 1.0), _door("d2", 2.0)), ()))
+    write_parts(root / "capture" / "gt" / "parts.json", PartsFile((door_part("d0", 0.0), door_part("d1", 1.0), door_part("d2", 2.0)), ()))
     (root / "by_detector" / "builtin-t" / "articulate").mkdir(parents=True)
     write_parts(root / "by_detector" / "builtin-t" / "articulate" / "parts.json",
-                PartsFile((_door("a", 0.0), _door("b", 1.0, "prismatic")), ()))
+                PartsFile((door_part("a", 0.0), door_part("b", 1.0, "prismatic")), ()))
     r = _run(split, "--tag", "t", "--missed", "--json", tmp_path / "wrong.json")
     assert r.returncode == 0, r.stderr
     assert "2 true parts not found: wrong_kind 1, off_front 0, merged 0, no_part 1" in r.stdout
