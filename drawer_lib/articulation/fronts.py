@@ -14,8 +14,6 @@ from drawer_lib.io.parts import Front
 from drawer_lib.perception.decompose import Segment
 
 MAX_SAMPLES = 400_000
-RECT_NEAR = 0.03  # m: a side of a rectangle from masks that one mask fewer would move farther than this is near
-SIDES = ("left", "bottom", "right", "top")  # lo_u, lo_v, hi_u, hi_v of a front's frame
 
 
 def sample_points(mesh: trimesh.Trimesh, faces: Int[np.ndarray, "K"], per_m2: float, seed: int
@@ -160,33 +158,13 @@ def mask_uv(front: Front, mask: np.ndarray, cam: Camera, border_px: int, min_pix
     return np.stack([rel @ np.asarray(front.u), rel @ front.v], -1), border[ok]
 
 
-def median_jump(x: Float[np.ndarray, "n"]) -> float:
-    """How far the median of ``x`` [n >= 2] moves at most when one value is left out: the larger
-    of the medians without the lowest and without the highest value, against the median of all
-    (one value more, anywhere, moves it no farther). Masks that agree give a few millimetres;
-    masks split between two readings of a front (one door alone in some views, the run of doors
-    joined in others) give the gap between the readings when the split is even."""
-    xs = np.sort(np.asarray(x, float))
-    if len(xs) < 2:
-        raise ValueError(f"median_jump: needs 2 values or more, got {len(xs)}")
-    m = float(np.median(xs))
-    return max(float(np.median(xs[1:])) - m, m - float(np.median(xs[:-1])))
-
-
-def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg: FrontsConfig,
-                      near: list[dict] | None = None) -> tuple[Front, int]:
+def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg: FrontsConfig) -> tuple[Front, int]:
     """The front's rectangle from the 2D masks it matched: each mask's pixels are cast onto the
     front plane; per mask and side, the ``mask_percentile`` extent along u and v (corrected
     for a uniform spread); per side the median over the masks whose extreme pixels on that side
     do not touch the image border (a mask cut by the frame says nothing about that edge). A side
     with fewer than ``mask_min_frames`` such masks keeps the mesh fit. ``masks``: [(bool mask
-    [H, W], the camera that saw it)]. Returns (front, masks used).
-
-    ``near`` (a list, if given) receives each side that one mask fewer would move by more than
-    :data:`RECT_NEAR` (:func:`median_jump`; to the mesh fit's side when that leaves fewer than
-    ``mask_min_frames``): ``{"side", "jump", "masks"}`` (m; the masks that side's median is
-    over). Another machine's last bits that change one view's mask can move such a side, and
-    with it the cuts made inside the rectangle."""
+    [H, W], the camera that saw it)]. Returns (front, masks used)."""
     hw, hh = front.size[0] / 2, front.size[1] / 2
     sides: list[list[float]] = [[], [], [], []]  # lo_u, lo_v, hi_u, hi_v
     used = 0
@@ -209,13 +187,6 @@ def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg:
         used += any_side
     fallback = [-hw, -hh, hw, hh]
     ext = [float(np.median(x)) if len(x) >= cfg.mask_min_frames else fb for x, fb in zip(sides, fallback)]
-    if near is not None:
-        for name, x, e, fb in zip(SIDES, sides, ext, fallback):
-            if len(x) < cfg.mask_min_frames:
-                continue
-            jump = abs(e - fb) if len(x) - 1 < cfg.mask_min_frames else median_jump(np.asarray(x))
-            if jump > RECT_NEAR:
-                near.append({"side": name, "jump": round(jump, 4), "masks": len(x)})
     lo_u, lo_v, hi_u, hi_v = ext
     if hi_u <= lo_u or hi_v <= lo_v:
         return front, 0

@@ -61,9 +61,7 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     bits could cross (a gap line one cell of the rectified front from its coverage bound, a
     width one cell from ``max_width``, a depth or outline step within
     :data:`~drawer_lib.articulation.gaps.STEP_BAND` of its bounds) is listed in ``near_cuts``,
-    and the segment's fronts are marked ``low_margin``; so are they when a side of the rectangle
-    from the masks is one that one mask fewer would move by more than
-    :data:`~drawer_lib.articulation.fronts.RECT_NEAR` (the info's ``near_rect``). A planar segment whose label votes are mostly no front
+    and the segment's fronts are marked ``low_margin``. A planar segment whose label votes are mostly no front
     label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part.
     Last, coplanar neighbours share their edges (:func:`~drawer_lib.articulation.fronts.share_edges`,
     on each front's own face centres); a side that moved in by more than half of
@@ -90,9 +88,8 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
             report.append({"segment": s.id, "family": "none", "reason": "not vertical"})
             continue
         front, used = fitted, 0
-        near_rect: list[dict] = []  # sides of the rectangle that one mask fewer would move
         if masks_of is not None:
-            front, used = refine_with_masks(fitted, masks_of(s), fc, near=near_rect)
+            front, used = refine_with_masks(fitted, masks_of(s), fc)
         pieces, even = [front], []  # even: the parts of it cut into equal pieces (split.wide_even)
         near_cuts: list[dict] = []  # cuts made or not by a margin another machine's last bits could undo
         if cfg.split.enabled and cfg.rectify.enabled and views and any(v.image is not None for v in views):
@@ -120,7 +117,6 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                 continue
             info = ({"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
                     | ({"mesh_cuts": cuts} if cuts else {}) | ({"near_cuts": near_cuts} if near_cuts else {})
-                    | ({"near_rect": near_rect} if near_rect else {})
                     | too_wide | ({"even_pieces": even} if even else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
@@ -281,9 +277,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         pair = (pair_of_doors(h, fr.size, terms["excluded"], cfg.types)
                 if "excluded" in terms and k not in partner else None)
         gave = gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
-        # a threshold another machine could cross: a glazed front's rule, a cut, the rectangle, the choice of the pull
-        near = (bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or bool(info.get("near_rect"))
-                or k in near_handles)
+        # a threshold another machine could cross: a glazed front's rule, a cut, the choice of the pull
+        near = bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or k in near_handles
         pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
             reason = pdec.reason + gave

@@ -412,83 +412,27 @@ def test_view_rate_evidence_needs_the_views_and_matches_count_on_a_clean_handle(
         infer_parts(mesh, [seg], CAMS, ArticulateConfig(), hits)
 
 
-# a camera at y = -2 looking +y (OpenCV: x right, y down, z forward), 200 x 200, centred on x = 0, z = 0.45
-MASK_K = (200.0, 200.0, 100.0, 100.0)
-MASK_CAM = Camera(Intrinsics(*MASK_K, 200, 200),
-                  np.array([[1, 0, 0, 0], [0, 0, -1, 0.45], [0, 1, 0, 2.0], [0, 0, 0, 1]], float))
-
-
-def plane_mask(x0, x1, z0, z1) -> np.ndarray:
-    """MASK_CAM's image [200, 200] of the rectangle x0..x1, z0..z1 on the plane y = Y: the pixels
-    whose centres fall inside."""
-    yy, xx = np.mgrid[0:200, 0:200]
-    X = (xx + 0.5 - MASK_K[2]) / MASK_K[0] * 1.4  # depth to the plane: 2 - 0.6 = 1.4 m
-    Z = 0.45 - (yy + 0.5 - MASK_K[3]) / MASK_K[1] * 1.4
-    return (X >= x0) & (X <= x1) & (Z >= z0) & (Z <= z1)
-
-
 def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
     from drawer_lib.io.parts import Front
 
-    cam, mask = MASK_CAM, plane_mask
+    # camera at y = -2 looking +y (OpenCV: x right, y down, z forward)
+    w2c = np.array([[1, 0, 0, 0], [0, 0, -1, 0.45], [0, 1, 0, 2.0], [0, 0, 0, 1]], float)
+    K = (200.0, 200.0, 100.0, 100.0)
+    H = W = 200
+    cam = Camera(Intrinsics(*K, W, H), w2c)
+    yy, xx = np.mgrid[0:H, 0:W]
+
+    def mask(x0, x1, z0, z1):  # the rectangle's image, pixels whose centres fall inside
+        X = (xx + 0.5 - K[2]) / K[0] * 1.4  # depth to the plane: 2 - 0.6 = 1.4 m
+        Z = 0.45 - (yy + 0.5 - K[3]) / K[1] * 1.4
+        return (X >= x0) & (X <= x1) & (Z >= z0) & (Z <= z1)
+
     rough = Front((0.0, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.4, 0.5))
     full = [(mask(-0.25, 0.25, 0.1, 0.8), cam)] * 3
     f, used = refine_with_masks(rough, full, FrontsConfig())
     assert used == 3 and np.allclose(f.size, [0.5, 0.7], atol=0.01) and np.allclose(f.center, [0, Y, 0.45], atol=0.005)
     f2, _ = refine_with_masks(rough, [(mask(-0.25, 2.0, 0.1, 0.8), cam)] * 3, FrontsConfig())  # off the right border
     assert f2.size[0] == pytest.approx(0.25 + 0.2, abs=0.01)  # left edge from the masks, right edge kept
-
-    # masks split between a door alone (x <= 0.25) and the door joined to its neighbour (x <= 0.65):
-    # with 3 against 2 the median is the door, and one mask fewer of the three makes it the run
-    near: list[dict] = []
-    split = full + [(mask(-0.25, 0.65, 0.1, 0.8), cam)] * 2
-    f3, used3 = refine_with_masks(rough, split, FrontsConfig(), near=near)
-    assert used3 == 5 and f3.size[0] == pytest.approx(0.5, abs=0.01)
-    assert [n["side"] for n in near] == ["right"] and near[0]["masks"] == 5
-    assert near[0]["jump"] == pytest.approx(0.2, abs=0.01)  # the median of 4 lies halfway between the readings
-    near.clear()
-    refine_with_masks(rough, full + [(mask(-0.25, 0.65, 0.1, 0.8), cam)], FrontsConfig(), near=near)
-    assert near == []  # 3 against 1: one mask fewer leaves the door
-    refine_with_masks(rough, full[:2], FrontsConfig(), near=near)
-    assert {n["side"] for n in near} == {"left", "right", "top", "bottom"}  # one fewer: the mesh fit's sides
-    near.clear()
-    refine_with_masks(rough, full, FrontsConfig(), near=near)
-    assert near == []  # masks that agree
-
-
-def test_a_rectangle_one_mask_would_move_marks_the_front_low_margin():
-    """The analytic door (x 0..0.5) seen alone in 3 views and joined with a neighbour out to
-    x = 0.62 in 2: its rectangle stays the door's, and its right side, which one mask fewer would
-    move to halfway, is in the decision's ``near_rect`` and the part is ``low_margin``; with 4
-    views against 1 it is neither."""
-    mesh, outer = scene("right")
-    for n_alone, near in ((3, True), (4, False)):
-        masks = [(plane_mask(X0, X1, Z0, Z1), MASK_CAM)] * n_alone + [(plane_mask(X0, 0.62, Z0, Z1), MASK_CAM)] * 2
-        masks = masks[:n_alone + (2 if near else 1)]
-        parts, report = infer_parts(mesh, [segment(mesh, outer)], CAMS, ArticulateConfig(), masks_of=lambda s: masks)
-        (p,), (row,) = parts, report
-        assert p.front.size[0] == pytest.approx(0.5, abs=0.02)
-        assert ("near_rect" in row) is near and p.extra["low_margin"] is near
-        if near:
-            assert [r["side"] for r in row["near_rect"]] == ["right"] and row["near_rect"][0]["jump"] > 0.05
-
-
-def test_median_jump_matches_dropping_each_value():
-    """The median's largest move when one value is left out, against leaving out each in turn,
-    for odd and even counts, ties and a bimodal split; fewer than 2 values is an error."""
-    from drawer_lib.articulation.fronts import median_jump
-
-    rng = np.random.default_rng(0)
-    samples = [rng.normal(size=n) for n in (2, 3, 4, 7, 10)]
-    samples += [np.array([1.0, 1.0, 1.0, 2.0]), np.r_[np.zeros(5), np.ones(4)], np.r_[np.zeros(5), np.ones(5)]]
-    for x in samples:
-        m = np.median(x)
-        ref = max(abs(np.median(np.delete(x, i)) - m) for i in range(len(x)))
-        assert median_jump(x) == pytest.approx(ref, abs=1e-12)
-    assert median_jump(np.r_[np.zeros(5), np.ones(4)]) == pytest.approx(0.5)  # 5 against 4: one fewer of the 5 ties
-    assert median_jump(np.r_[np.zeros(6), np.ones(3)]) == 0.0
-    with pytest.raises(ValueError, match="2 values"):
-        median_jump(np.array([1.0]))
 
 
 def test_abutting_fronts_share_one_boundary():
