@@ -19,9 +19,7 @@ class FrontsConfig:
     centre on the panel's outer face: the ``outer_percentile`` of the inliers' offsets.
     With detections, each side is instead the median over the matched masks (cast onto the
     plane; ``mask_percentile`` extents) whose pixels on that side stay ``mask_border_px`` away
-    from the image border, when at least ``mask_min_frames`` masks say so; of an even count,
-    the mean of the two middle values (``mask_median: mean``) or the one of them nearer the
-    mesh fit's side (``nearer_fit``: a side some mask shows). Coplanar fronts
+    from the image border, when at least ``mask_min_frames`` masks say so. Coplanar fronts
     (within 0.75 x the smallest sliding step) whose facing edges lie within ``shared_edge_gap``
     (0 = off), overlap over ``shared_edge_overlap`` of the shorter side and whose axes agree
     within ``shared_edge_angle_deg`` share one edge; so do two whose rectangles run into each
@@ -47,7 +45,6 @@ class FrontsConfig:
     mask_min_frames: int = 2
     mask_border_px: int = 2
     mask_min_pixels: int = 20
-    mask_median: str = "mean"
     shared_edge_gap: float = 0.025
     shared_edge_overlap: float = 0.5
     shared_edge_angle_deg: float = 10.0
@@ -56,8 +53,6 @@ class FrontsConfig:
     sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
 
     def __post_init__(self):
-        if self.mask_median not in ("mean", "nearer_fit"):
-            raise ConfigError(f"articulate.fronts.mask_median = {self.mask_median!r} must be mean or nearer_fit")
         if not 0 < self.extent_percentile < 50 or not 0 < self.mask_percentile < 50:
             raise ConfigError("articulate.fronts: extent_percentile and mask_percentile must be in (0, 50)")
         if self.shared_edge_gap < 0:

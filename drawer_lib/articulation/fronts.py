@@ -158,31 +158,13 @@ def mask_uv(front: Front, mask: np.ndarray, cam: Camera, border_px: int, min_pix
     return np.stack([rel @ np.asarray(front.u), rel @ front.v], -1), border[ok]
 
 
-def side_median(x: Float[np.ndarray, "n"], fit: float, how: str = "mean") -> float:
-    """The median of a rectangle side's values ``x`` [n >= 1] over the masks (m). Of an even
-    count, ``how`` = ``mean``: the mean of the two middle values; ``nearer_fit``: the one of them
-    nearer ``fit`` (the mesh fit's side; their mean when equally near). Masks split between two
-    readings of a front (one door alone in some views, the run of doors joined in others) have
-    their middle values in different readings, and the mean of them is a side no mask shows."""
-    xs = np.sort(np.asarray(x, float))
-    n = len(xs)
-    if n == 0:
-        raise ValueError("side_median: no values")
-    if n % 2 or how == "mean":
-        return float(np.median(xs))
-    a, b = float(xs[n // 2 - 1]), float(xs[n // 2])
-    da, db = abs(a - fit), abs(b - fit)
-    return a if da < db else b if db < da else (a + b) / 2
-
-
 def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg: FrontsConfig) -> tuple[Front, int]:
     """The front's rectangle from the 2D masks it matched: each mask's pixels are cast onto the
     front plane; per mask and side, the ``mask_percentile`` extent along u and v (corrected
-    for a uniform spread); per side the median (:func:`side_median`, ``cfg.mask_median``) over
-    the masks whose extreme pixels on that side do not touch the image border (a mask cut by
-    the frame says nothing about that edge). A side with fewer than ``mask_min_frames`` such
-    masks keeps the mesh fit. ``masks``: [(bool mask [H, W], the camera that saw it)]. Returns
-    (front, masks used)."""
+    for a uniform spread); per side the median over the masks whose extreme pixels on that side
+    do not touch the image border (a mask cut by the frame says nothing about that edge). A side
+    with fewer than ``mask_min_frames`` such masks keeps the mesh fit. ``masks``: [(bool mask
+    [H, W], the camera that saw it)]. Returns (front, masks used)."""
     hw, hh = front.size[0] / 2, front.size[1] / 2
     sides: list[list[float]] = [[], [], [], []]  # lo_u, lo_v, hi_u, hi_v
     used = 0
@@ -204,8 +186,7 @@ def refine_with_masks(front: Front, masks: list[tuple[np.ndarray, Camera]], cfg:
                 any_side = True
         used += any_side
     fallback = [-hw, -hh, hw, hh]
-    ext = [side_median(np.asarray(x), fb, cfg.mask_median) if len(x) >= cfg.mask_min_frames else fb
-           for x, fb in zip(sides, fallback)]
+    ext = [float(np.median(x)) if len(x) >= cfg.mask_min_frames else fb for x, fb in zip(sides, fallback)]
     lo_u, lo_v, hi_u, hi_v = ext
     if hi_u <= lo_u or hi_v <= lo_v:
         return front, 0

@@ -433,37 +433,6 @@ def test_rectangle_from_masks_ignores_sides_cut_by_the_image_border():
     assert used == 3 and np.allclose(f.size, [0.5, 0.7], atol=0.01) and np.allclose(f.center, [0, Y, 0.45], atol=0.005)
     f2, _ = refine_with_masks(rough, [(mask(-0.25, 2.0, 0.1, 0.8), cam)] * 3, FrontsConfig())  # off the right border
     assert f2.size[0] == pytest.approx(0.25 + 0.2, abs=0.01)  # left edge from the masks, right edge kept
-    # masks split 2 : 2 between the front alone (right side 0.25) and the front joined to its
-    # neighbour (0.65): the mean of the middle two is a side no mask shows, nearer_fit takes the
-    # reading nearer the mesh fit's side (rough: 0.2)
-    split = full[:2] + [(mask(-0.25, 0.65, 0.1, 0.8), cam)] * 2
-    f3, _ = refine_with_masks(rough, split, FrontsConfig())
-    assert f3.size[0] == pytest.approx(0.7, abs=0.01)  # right side at 0.45
-    f4, _ = refine_with_masks(rough, split, FrontsConfig(mask_median="nearer_fit"))
-    assert f4.size[0] == pytest.approx(0.5, abs=0.01)
-    wide = Front((0.2, Y, 0.45), (0, -1, 0), (1, 0, 0), (0.9, 0.5))  # a mesh fit over the run: right side 0.65
-    f5, _ = refine_with_masks(wide, split, FrontsConfig(mask_median="nearer_fit"))
-    assert f5.size[0] == pytest.approx(0.9, abs=0.01)
-
-
-def test_side_median_of_an_even_count_takes_a_value_some_mask_shows():
-    """``mean`` is np.median; ``nearer_fit`` is np.median for an odd count, and of an even
-    count the middle value nearer the fit (the mean when equally near)."""
-    from drawer_lib.articulation.fronts import side_median
-
-    rng = np.random.default_rng(1)
-    for n in (1, 2, 3, 6, 9):
-        x = rng.normal(size=n)
-        assert side_median(x, 0.0) == pytest.approx(np.median(x))
-        if n % 2:
-            assert side_median(x, 5.0, "nearer_fit") == pytest.approx(np.median(x))
-    x = np.array([0.25, 0.26, 0.64, 0.65])
-    assert side_median(x, 0.2, "nearer_fit") == 0.26 and side_median(x, 0.7, "nearer_fit") == 0.64
-    assert side_median(x, 0.45, "nearer_fit") == pytest.approx(0.45)  # equally near: the mean
-    with pytest.raises(ValueError, match="no values"):
-        side_median(np.array([]), 0.0)
-    with pytest.raises(ConfigError, match="mask_median"):
-        FrontsConfig(mask_median="mode")
 
 
 def test_abutting_fronts_share_one_boundary():
