@@ -15,8 +15,9 @@ run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline: dv
 	$(BIN)/python scripts/compose_params.py
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS) $(RUN_ARGS)
 
-test: setup ## set up and run the test suite (not the slow benchmarks)
-	$(BIN)/python -m pytest
+TEST_WORKERS ?= 2
+test: setup ## set up and run the test suite (not the slow benchmarks), on TEST_WORKERS processes (pytest-xdist; 0: in this one)
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadscope
 
 test-all: setup ## the test suite including slow tests
 	$(BIN)/python -m pytest -m ""
