@@ -17,7 +17,7 @@ run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline: dv
 
 TEST_WORKERS ?= 2
 test: setup ## set up and run the test suite (not the slow benchmarks), on TEST_WORKERS processes (pytest-xdist; 0: in this one)
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadscope
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadscope --no-loadscope-reorder
 
 test-all: setup ## the test suite including slow tests
 	$(BIN)/python -m pytest -m ""
