@@ -16,8 +16,8 @@ run: setup ## set up, compose params.yaml from conf/, reproduce the pipeline: dv
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python scripts/repro.py --jobs $(RUN_JOBS) $(RUN_ARGS)
 
 TEST_WORKERS ?= 2
-test: setup ## set up and run the test suite (not the slow benchmarks), on TEST_WORKERS processes (pytest-xdist; 0: in this one)
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadscope --no-loadscope-reorder
+test: setup ## set up and run the test suite (not the slow benchmarks), on TEST_WORKERS processes (pytest-xdist, a module to a process so its fixtures are built once; 0: in this one)
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadscope
 
 test-all: setup ## the test suite including slow tests
 	$(BIN)/python -m pytest -m ""

@@ -64,12 +64,9 @@ def rng() -> np.random.Generator:
 
 
 def pytest_collection_modifyitems(config, items):
-    """The ``dvc``-marked tests (the dvc CLI on the whole DAG: the longest, minutes each) go
-    first, so that on several processes (``make test``: pytest-xdist) they start at once rather
-    than last; ``gpu``-marked tests run only where CUDA is present."""
+    """``gpu``-marked tests run only where CUDA is present."""
     import torch
 
-    items.sort(key=lambda it: it.get_closest_marker("dvc") is None)  # stable: the rest keep their order
     if torch.cuda.is_available():
         return
     skip = pytest.mark.skip(reason="needs CUDA, which this machine does not have")
