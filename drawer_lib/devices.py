@@ -49,8 +49,9 @@ def cuda_numerics(dev: torch.device) -> AbstractContextManager:
     picks the same kernels. cuDNN's TF32 default rounds a convolution's inputs to a 10-bit
     mantissa (about 1e-3 relative); it moved a fit's third loss by 1.5e-4 on an H200. Its effect
     on the detector's probabilities was not measured, but it is rounding far coarser than
-    float32's, whose size already moves a part in the tuning kitchens' jitter study. (In a fit, the bilinear upsampling's and max-pooling's backward passes still add with
-    atomics, so two CUDA fits can differ in the last bits.) On the CPU nothing changes.
+    float32's, whose size already moves a part in the tuning kitchens' jitter study. (In a fit,
+    the bilinear upsampling's and max-pooling's backward passes still add with atomics, so two
+    CUDA fits can differ in the last bits.) On the CPU nothing changes.
 
     >>> import contextlib; isinstance(cuda_numerics(torch.device("cpu")), contextlib.nullcontext)
     True
