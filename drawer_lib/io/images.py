@@ -125,11 +125,14 @@ FLOAT_DECIMALS = 10
 
 def round_floats(obj, decimals: int = FLOAT_DECIMALS):
     """``obj`` with every float rounded to ``decimals`` places (-0.0 written as 0.0); tuples
-    become lists, dicts and lists are copied; NaN and inf are left for the writer to refuse.
+    become lists, dicts and lists are copied, numpy scalars (``np.bool_``, ``np.float32``, ...)
+    become Python ones; NaN and inf are left for the writer to refuse.
 
-    >>> round_floats({"a": [0.1 + 0.2, -1e-17], "b": (1, 2.5)})
-    {'a': [0.3, 0.0], 'b': [1, 2.5]}
+    >>> round_floats({"a": [0.1 + 0.2, -1e-17], "b": (1, 2.5), "c": np.float64(1) > 0})
+    {'a': [0.3, 0.0], 'b': [1, 2.5], 'c': True}
     """
+    if isinstance(obj, np.generic):
+        obj = obj.item()
     if isinstance(obj, float):
         return round(obj, decimals) + 0.0 if math.isfinite(obj) else obj
     if isinstance(obj, dict):

@@ -45,6 +45,19 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
     assert p.read_text() == "old" and _names(tmp_path) == ["f.txt"]
 
 
+def test_write_json_takes_numpy_scalars_and_still_refuses_their_nan(tmp_path):
+    """A decision's flag computed from a numpy margin (``margin >= 0``) is ``np.bool_``, which
+    the json module refuses; written as plain JSON, and a numpy NaN is still refused."""
+    import json
+
+    import numpy as np
+    p = tmp_path / "d.json"
+    write_json(p, {"made": np.float64(-0.2) >= 0, "n": np.int64(3), "m": np.float32(0.25), "l": [np.True_]})
+    assert json.loads(p.read_text()) == {"made": False, "n": 3, "m": 0.25, "l": [True]}
+    with pytest.raises(ValueError):
+        write_json(p, {"x": np.float32("nan")})
+
+
 def test_files_written_together_land_together(tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     with pytest.raises(Boom):
