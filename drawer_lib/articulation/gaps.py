@@ -206,7 +206,7 @@ def xy_cuts(lines_u: tuple[np.ndarray, ...], lines_v: tuple[np.ndarray, ...], ha
             near.append({"cut": "too_wide", "made": wide, "cells": u1 - u0})
         for axis, clear in (("u", None if wide else clear_u), ("v", clear_v)):  # a wide piece is cut either way
             if clear is not None and clear.near():
-                near.append({"cut": "gap_line", "axis": axis, "made": bool(clear.margin >= 0), "at": clear.at,
+                near.append({"cut": "gap_line", "axis": axis, "made": clear.margin >= 0, "at": clear.at,
                              "margin": round(clear.margin, 4), "band": round(clear.band, 4)})
     if wide and ju < 0:  # too wide to be one front, and no line good enough: the best line there is
         ju, cu, _ = _best_cut(lines_u, handle, u0, u1, v0, v1, wide_min_cells, coverage, 0.0, several=True)

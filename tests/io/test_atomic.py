@@ -1,9 +1,11 @@
 """Whole-or-nothing writes (drawer_lib/io/atomic.py): the content lands, no temporary is left,
 a failure mid-write leaves the old version and no temporary, str and Path both work."""
 
+import json
 import os
 from contextlib import ExitStack
 
+import numpy as np
 import pytest
 
 from drawer_lib.io.atomic import (atomic_folder, atomic_open, atomic_write_bytes, atomic_write_text, replace_path,
@@ -48,9 +50,6 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
 def test_write_json_takes_numpy_scalars_and_still_refuses_their_nan(tmp_path):
     """A decision's flag computed from a numpy margin (``margin >= 0``) is ``np.bool_``, which
     the json module refuses; written as plain JSON, and a numpy NaN is still refused."""
-    import json
-
-    import numpy as np
     p = tmp_path / "d.json"
     write_json(p, {"made": np.float64(-0.2) >= 0, "n": np.int64(3), "m": np.float32(0.25), "l": [np.True_]})
     assert json.loads(p.read_text()) == {"made": False, "n": 3, "m": 0.25, "l": [True]}
