@@ -11,14 +11,16 @@ them the one detector later stages read.
 
 An interrupted fit (Ctrl-C, SIGTERM, a cluster's time limit) keeps its state every
 ``detector.checkpoint_every`` steps in ``<paths.bench>/detector_fit_resume/<seed>.pt``; the same
-command (or ``dvc repro``) goes on from there to the weights an uninterrupted fit makes.
+command (or ``dvc repro``) goes on from there to the weights an uninterrupted fit makes. The
+state is removed once the stage's outputs are in place, so a kill while the fit is scored
+costs the rerun no training step.
 """
 
 import hydra
 from omegaconf import DictConfig
 
 from drawer_lib.config.stage import bench_paths
-from drawer_lib.detect.train import run_fit_detector, stage_inputs
+from drawer_lib.detect.train import drop_fit_state, run_fit_detector, stage_inputs
 from drawer_lib.runner import main_guard, stage_run
 
 
@@ -27,8 +29,10 @@ from drawer_lib.runner import main_guard, stage_run
 def main(cfg: DictConfig) -> None:
     tc, base, render = stage_inputs(cfg)
     dst = bench_paths(cfg)[1]
+    resume = dst.detector_fit_resume(cfg.seed)
     with stage_run("detector_fit", dst.detector_fit(cfg.seed), seed=cfg.seed) as run:
-        run.metrics.update(run_fit_detector(tc, base, render, cfg.seed, run, dst.detector_fit_resume(cfg.seed)))
+        run.metrics.update(run_fit_detector(tc, base, render, cfg.seed, run, resume))
+    drop_fit_state(resume)  # only now: a kill before the outputs landed costs the rerun no step
 
 
 if __name__ == "__main__":

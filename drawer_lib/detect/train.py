@@ -156,7 +156,9 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     of the step in progress, :func:`~drawer_lib.runner.deferred_interrupts`): a later call with the
     same settings, seed and views (:func:`fit_fingerprint`) goes on from the saved step to the
     same weights, bit for bit on the same machine and threads, as a fit never stopped; its
-    ``curve`` gets the earlier rows again first. The file is removed once the fit is done.
+    ``curve`` gets the earlier rows again first. A finished fit leaves its last state there (a
+    rerun returns its weights without a step) for the caller to remove with
+    :func:`drop_fit_state` once what it makes of the fit is written.
 
     ``cfg.device``: where the network trains (``cpu``, ``cuda``); it starts from the same
     weights and sees the same crops on every device, and comes back on the CPU."""
@@ -218,9 +220,18 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
             print(f"[detector] interrupted: step {done} of {cfg.steps} kept in {resume}; rerun to go on",
                   file=sys.stderr)
         raise
-    if resume is not None:
-        resume.unlink(missing_ok=True)
+    if resume is not None and done == cfg.steps and start <= cfg.steps:
+        save(done)  # the whole fit, kept until its caller's outputs have landed (drop_fit_state)
     return model.cpu().eval(), [r[2] for r in rows]
+
+
+def drop_fit_state(resume: Path) -> None:
+    """Remove a finished fit's saved state (:func:`fit_detector`'s ``resume``) and its folder
+    when no other seed's state is left in it. Called once the fit's outputs are in place: a kill
+    between the fit's last step and that moment costs a rerun no step."""
+    resume.unlink(missing_ok=True)
+    if resume.parent.is_dir() and not any(resume.parent.iterdir()):
+        resume.parent.rmdir()
 
 
 def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int,
@@ -345,7 +356,8 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     split's kitchens ``cfg.kitchens``, fit from ``seed``, write ``weights.pt`` and ``curve.csv``
     (loss against training time), and score it on the train views and on the test split's kitchens
     ``cfg.eval_kitchens``, which it never saw. ``resume``: where an interrupted fit keeps its
-    state and a rerun goes on from it (:func:`fit_detector`)."""
+    state and a rerun goes on from it (:func:`fit_detector`); still there when this returns, for
+    the caller to drop once the stage's outputs are in place (:func:`drop_fit_state`)."""
     check_layouts(cfg)
     dev = train_device(cfg)
     t0 = time.perf_counter()
@@ -358,8 +370,6 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
     samples = [to_sample(v, cfg.working_size) for v in train_views]
     t1 = time.perf_counter()
     model, losses = fit_detector(samples, cfg, seed, run.curve(["loss"]), run.progress, resume)
-    if resume is not None and resume.parent.is_dir() and not any(resume.parent.iterdir()):
-        resume.parent.rmdir()  # no other seed's fit is unfinished
     train_s = time.perf_counter() - t1
     dc = fit_decoding(cfg)
     save_detector(run.dir / BENCH["detector_fit_weights"], model, fit_info(cfg))

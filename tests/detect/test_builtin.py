@@ -37,7 +37,7 @@ from drawer_lib.detect.builtin import (
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, _crop_batch, fit_views, average_fit, check_layouts, class_weights, fit_detector, pixel_accuracy
+from drawer_lib.detect.train import Sample, _crop_batch, fit_views, average_fit, check_layouts, class_weights, drop_fit_state, fit_detector, pixel_accuracy
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
@@ -387,7 +387,9 @@ def test_a_fit_on_cuda_starts_sees_and_ends_as_on_the_cpu(tmp_path):
         fit_detector(samples, short, seed=0, progress=_stop_after(7), resume=state)
     _, resumed = fit_detector(samples, short, seed=0, resume=state)
     _, whole = fit_detector(samples, short, seed=0)
-    assert len(resumed) == 6 and not state.exists()
+    assert len(resumed) == 6 and torch.load(state, weights_only=False)["step"] == 12
+    drop_fit_state(state)
+    assert not state.exists()
     np.testing.assert_allclose(resumed, whole, rtol=1e-3)
 
 
@@ -422,7 +424,8 @@ def test_an_interrupted_fit_goes_on_to_the_weights_of_an_uninterrupted_one(tmp_p
         assert losses == ref_losses
         for k, v in ref.state_dict().items():
             assert torch.equal(model.state_dict()[k], v), k
-        assert not state.exists()
+        drop_fit_state(state)
+        assert not state.exists() and not state.parent.exists()
         steps = [int(r.split(",")[0]) for r in (tmp_path / f"d{stop}" / "curve.csv").read_text().split()[1:]]
         assert steps == [2, 4, 6, 8, 10, 12]
 
@@ -449,8 +452,36 @@ def test_a_signal_mid_fit_stops_it_at_the_end_of_that_step(tmp_path):
             fit_detector(samples, cfg, seed=0, progress=term_at(n), resume=state)
         assert torch.load(state, weights_only=False)["step"] == kept
         model, losses = fit_detector(samples, cfg, seed=0, resume=state)
-        assert losses == ref_losses and not state.exists()
+        assert losses == ref_losses
         assert all(torch.equal(model.state_dict()[k], v) for k, v in ref.state_dict().items())
+        drop_fit_state(state)
+
+
+def test_a_finished_fit_keeps_its_state_until_its_outputs_are_written(tmp_path):
+    """A fit run to its end leaves its last state: killed after the last step and before the
+    stage wrote its outputs, the rerun takes no step and returns the same weights and losses.
+    drop_fit_state removes the state, and the folder only when no other seed's state is in it."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=6, batch=4, crop=32, lr=1e-2, log_every=2, checkpoint_every=4)
+    state, other = tmp_path / "resume" / "0.pt", tmp_path / "resume" / "1.pt"
+    ref, ref_losses = fit_detector(samples, cfg, seed=0, resume=state)
+    assert torch.load(state, weights_only=False)["step"] == 6
+    taken = []
+
+    def counting(it, **kw):
+        for x in it:
+            taken.append(x)
+            yield x
+
+    model, losses = fit_detector(samples, cfg, seed=0, progress=counting, resume=state)
+    assert taken == [] and losses == ref_losses
+    assert all(torch.equal(model.state_dict()[k], v) for k, v in ref.state_dict().items())
+    other.write_bytes(b"another seed's unfinished fit")
+    drop_fit_state(state)
+    assert not state.exists() and other.exists()
+    drop_fit_state(other)
+    assert not state.parent.exists()
+    drop_fit_state(state)  # nothing left to drop: no error
 
 
 def test_a_saved_state_of_another_fit_is_not_gone_on_from(tmp_path, capsys):
