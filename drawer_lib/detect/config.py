@@ -141,7 +141,8 @@ class DetectorTrainConfig:
     its state (weights, optimiser, schedule, random streams, curve) every that many steps and
     when it is interrupted, and a rerun with the same settings and views goes on from there to
     the same weights as an uninterrupted fit (:func:`drawer_lib.detect.train.fit_detector`; a
-    job past its time limit on a cluster loses at most that many steps); 0: never. ``device``:
+    job past its time limit on a cluster loses at most that many steps), and so does the
+    ``detector`` stage's averaging (:func:`drawer_lib.detect.train.average_fit`); 0: never. ``device``:
     where the fit, the averaging and the scoring run the network (``cpu``, ``cuda``,
     ``cuda:<index>``): the same initial weights and crops on every device, different last bits
     (so a fit parameter: changing it refits), the weights written for the CPU."""

@@ -129,20 +129,51 @@ def fit_fingerprint(samples: list[Sample], cfg: DetectorTrainConfig, seed: int) 
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def _load_state(path: Path, fingerprint: str) -> dict | None:
-    """The saved state at ``path`` when it belongs to this fit (its fingerprint), else ``None``
-    (a stale or unreadable one is reported and ignored: the fit starts afresh)."""
+def _load_state(path: Path, fingerprint: str, what: str = "fitting") -> dict | None:
+    """The saved state at ``path`` when it belongs to this run (its fingerprint), else ``None``
+    (a stale or unreadable one is reported and ignored: ``what`` starts afresh)."""
     if not path.is_file():
         return None
     try:
         state = torch.load(path, map_location="cpu", weights_only=False)
     except Exception as e:  # noqa: BLE001  (a truncated or foreign file: start afresh, say so)
-        print(f"[detector] {path}: unreadable saved state ({e.__class__.__name__}), fitting from step 0", file=sys.stderr)
+        print(f"[detector] {path}: unreadable saved state ({e.__class__.__name__}), {what} from step 0", file=sys.stderr)
         return None
     if not isinstance(state, dict) or state.get("fingerprint") != fingerprint:
-        print(f"[detector] {path}: saved by a fit with other settings or views, fitting from step 0", file=sys.stderr)
+        print(f"[detector] {path}: saved by a fit with other settings or views, {what} from step 0", file=sys.stderr)
         return None
     return state
+
+
+def _run_steps(start: int, total: int, take_step: Callable[[int], None], save: Callable[[int], None] | None,
+               checkpoint_every: int, progress: Callable, desc: str, where: Path | None = None) -> None:
+    """``take_step(step)`` for steps ``start`` .. ``total`` under ``progress``. With ``save`` (a
+    run that can be gone on from): ``save(step)`` every ``checkpoint_every`` steps (0: never),
+    at an interrupt (Ctrl-C, SIGTERM, SIGHUP: held to the end of the step in progress,
+    :func:`~drawer_lib.runner.deferred_interrupts`; a second signal within a step leaves the
+    last periodic save) when ``checkpoint_every`` > 0, and after the last step, which keeps a
+    finished run for its caller to drop (:func:`drop_fit_state`). The interrupt is re-raised."""
+    done, in_step = start - 1, False
+    try:
+        with deferred_interrupts() if save is not None else nullcontext([]) as pending:
+            for step in progress(range(start, total + 1), desc=desc, total=total, initial=start - 1):
+                in_step = True
+                take_step(step)
+                done, in_step = step, False
+                if pending:
+                    raise KeyboardInterrupt(f"signal {pending[0]}")
+                if save is not None and checkpoint_every and step % checkpoint_every == 0 and step < total:
+                    save(step)
+    except KeyboardInterrupt:
+        # between two steps (a signal held to the step's end, or the progress bar's iterator):
+        # this step's state; within one (a second signal): the last periodic save stands
+        if save is not None and checkpoint_every and done >= start and not in_step:
+            save(done)
+            print(f"[detector] interrupted: {desc} step {done} of {total} kept in {where}; rerun to go on",
+                  file=sys.stderr)
+        raise
+    if save is not None and done == total and start <= total:
+        save(done)
 
 
 def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, curve: Curve | None = None,
@@ -195,54 +226,64 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
                         "model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
                         "generator": g.get_state(), "torch_rng": torch.get_rng_state(), "rows": rows}, f)
 
+    def take_step(step: int) -> None:
+        loss = _train_step(model, opt, samples, cfg, g, weight, step)
+        sched.step()
+        if step % cfg.log_every == 0 or step == cfg.steps:
+            rows.append((step, wall0 + time.perf_counter() - t0, loss))
+            if curve is not None:
+                curve.log(step, wall_s=rows[-1][1], loss=loss)
+
     model.train()
-    done, in_step = start - 1, False
-    try:
-        with deferred_interrupts() if resume is not None else nullcontext([]) as pending, cuda_numerics(dev):
-            for step in progress(range(start, cfg.steps + 1), desc="train", total=cfg.steps, initial=start - 1):
-                in_step = True
-                loss = _train_step(model, opt, samples, cfg, g, weight, step)
-                sched.step()
-                done, in_step = step, False
-                if step % cfg.log_every == 0 or step == cfg.steps:
-                    rows.append((step, wall0 + time.perf_counter() - t0, loss))
-                    if curve is not None:
-                        curve.log(step, wall_s=rows[-1][1], loss=loss)
-                if pending:
-                    raise KeyboardInterrupt(f"signal {pending[0]}")
-                if resume is not None and cfg.checkpoint_every and step % cfg.checkpoint_every == 0 and step < cfg.steps:
-                    save(step)
-    except KeyboardInterrupt:
-        # between two steps (a signal held to the step's end, or the progress bar's iterator):
-        # this step's state; within one (a second signal): the last periodic save stands
-        if resume is not None and cfg.checkpoint_every and done >= start and not in_step:
-            save(done)
-            print(f"[detector] interrupted: step {done} of {cfg.steps} kept in {resume}; rerun to go on",
-                  file=sys.stderr)
-        raise
-    if resume is not None and done == cfg.steps and start <= cfg.steps:
-        save(done)  # the whole fit, kept until its caller's outputs have landed (drop_fit_state)
+    with cuda_numerics(dev):
+        _run_steps(start, cfg.steps, take_step, save if resume is not None else None, cfg.checkpoint_every,
+                   progress, "train", resume)
     return model.cpu().eval(), [r[2] for r in rows]
 
 
 def drop_fit_state(resume: Path) -> None:
-    """Remove a finished fit's saved state (:func:`fit_detector`'s ``resume``) and its folder
-    when no other seed's state is left in it. Called once the fit's outputs are in place: a kill
-    between the fit's last step and that moment costs a rerun no step."""
+    """Remove a finished fit's or averaging's saved state (:func:`fit_detector`'s or
+    :func:`average_fit`'s ``resume``) and its folder when no other state is left in it. Called
+    once the stage's outputs are in place: a kill between the last step and that moment costs a
+    rerun no step."""
     resume.unlink(missing_ok=True)
     if resume.parent.is_dir() and not any(resume.parent.iterdir()):
         resume.parent.rmdir()
 
 
+def average_fingerprint(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int) -> str:
+    """What an averaging's saved state must agree with to be gone on from: the fit's
+    (:func:`fit_fingerprint` of ``samples``), the averaging's settings and the weights it
+    starts from (sha256, hex)."""
+    h = hashlib.sha256(fit_fingerprint(samples, cfg, seed).encode())
+    h.update(json.dumps([cfg.average_steps, cfg.average_lr, cfg.average_warmup]).encode())
+    for k, v in model.state_dict().items():
+        h.update(k.encode() + b"\0" + v.detach().cpu().contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+def average_state_path(fit_resume: Path) -> Path:
+    """Where the ``detector`` stage's averaging of a fit keeps its state: beside the fit's own
+    (``detector_fit_resume/<seed>.pt`` -> ``detector_fit_resume/<seed>.average.pt``)."""
+    return Path(fit_resume).with_suffix(".average.pt")
+
+
 def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig, seed: int,
-                curve: Curve | None = None, progress: Callable = lambda it, **kw: it) -> TinyUNet:
+                curve: Curve | None = None, progress: Callable = lambda it, **kw: it,
+                resume: Path | None = None) -> TinyUNet:
     """Stochastic weight averaging after a fit (Izmailov et al. 2018; densely, every step, as
     SWAD, Cha et al. 2021, for unseen domains): ``cfg.average_steps`` further steps on
     ``samples`` from ``model``'s weights, Adam afresh with its rate raised linearly to
     ``cfg.average_lr`` over ``cfg.average_warmup`` steps and then held, and the uniform mean of
     the weights over every step after the warm-up. Returns that mean as a new :class:`TinyUNet`
     (eval mode; ``model`` is left as it was); its loss every ``log_every``-th step goes to
-    ``curve`` (columns ``seed``, ``loss``)."""
+    ``curve`` (columns ``seed``, ``loss``).
+
+    ``resume``: as :func:`fit_detector`'s (the network, the running mean and its count, Adam,
+    the random streams, the losses logged), every ``cfg.checkpoint_every`` steps, at an
+    interrupt and at the end; a later call with the same fit, settings, seed and views
+    (:func:`average_fingerprint`) goes on to the same mean, bit for bit on the same machine and
+    threads. The caller removes it (:func:`drop_fit_state`) once the detector is written."""
     if cfg.average_steps <= cfg.average_warmup:
         raise ValueError(f"average_fit: {cfg.average_steps} steps do not pass the warm-up of {cfg.average_warmup}")
     if not samples:
@@ -253,15 +294,44 @@ def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig
     avg = AveragedModel(net, use_buffers=True)  # the first update sets it to the weights of that step
     opt = torch.optim.Adam(net.parameters(), lr=cfg.average_lr)
     weight = class_weights(samples).to(dev)
-    with cuda_numerics(dev):
-        for step in progress(range(1, cfg.average_steps + 1), desc=f"average fit {seed}", total=cfg.average_steps):
-            for group in opt.param_groups:
-                group["lr"] = cfg.average_lr * min(1.0, step / max(cfg.average_warmup, 1))
-            loss = _train_step(net, opt, samples, cfg, g, weight, step)
-            if step > cfg.average_warmup:
-                avg.update_parameters(net)
-            if curve is not None and (step % cfg.log_every == 0 or step == cfg.average_steps):
+    rows: list[tuple[int, float]] = []  # (step, loss) as logged
+    fingerprint = average_fingerprint(model, samples, cfg, seed) if resume is not None else ""
+    state = _load_state(resume, fingerprint, "averaging") if resume is not None else None
+    start = 1
+    if state is not None:
+        net.load_state_dict(state["net"])
+        avg.load_state_dict(state["avg"])
+        opt.load_state_dict(state["opt"])
+        g.set_state(state["generator"])
+        torch.set_rng_state(state["torch_rng"])
+        rows = [tuple(r) for r in state["rows"]]
+        start = state["step"] + 1
+        print(f"[detector] averaging fit {seed}: going on from step {state['step']} of {cfg.average_steps} ({resume})",
+              file=sys.stderr)
+        if curve is not None:
+            for step, loss in rows:
                 curve.log(step, seed=seed, loss=loss)
+
+    def save(step: int) -> None:
+        with atomic_open(resume) as f:
+            torch.save({"fingerprint": fingerprint, "step": step, "net": net.state_dict(), "avg": avg.state_dict(),
+                        "opt": opt.state_dict(), "generator": g.get_state(), "torch_rng": torch.get_rng_state(),
+                        "rows": rows}, f)
+
+    def take_step(step: int) -> None:
+        for group in opt.param_groups:
+            group["lr"] = cfg.average_lr * min(1.0, step / max(cfg.average_warmup, 1))
+        loss = _train_step(net, opt, samples, cfg, g, weight, step)
+        if step > cfg.average_warmup:
+            avg.update_parameters(net)
+        if step % cfg.log_every == 0 or step == cfg.average_steps:
+            rows.append((step, loss))
+            if curve is not None:
+                curve.log(step, seed=seed, loss=loss)
+
+    with cuda_numerics(dev):
+        _run_steps(start, cfg.average_steps, take_step, save if resume is not None else None, cfg.checkpoint_every,
+                   progress, f"average fit {seed}", resume)
     out = TinyUNet(model.width)
     out.load_state_dict(avg.module.state_dict())
     return out.eval()
@@ -388,7 +458,7 @@ def run_fit_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderC
 
 
 def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: RenderConfig, fit_dirs: list[Path],
-                         run: StageRun) -> dict:
+                         run: StageRun, resume: list[Path] | None = None) -> dict:
     """The built-in detector the later stages read (the ``detector`` stage): the fits of
     ``cfg.seeds`` (``fit_dirs``, one ``detector_fit@<seed>`` folder each, in that order) as one
     ``weights.pt``, each fit's weights averaged over ``cfg.average_steps`` further steps first
@@ -399,7 +469,8 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
     (:func:`~drawer_lib.detect.builtin.save_detector`; several fits an ensemble), scored again
     on the test split's kitchens ``cfg.eval_kitchens``, with each fit's own figures beside it.
     A missing fit, or one fitted with other settings than ``cfg``, is an :class:`InputError`
-    naming it."""
+    naming it. ``resume`` (one path per seed): where each fit's averaging keeps its state
+    (:func:`average_fit`), for the caller to drop once the stage's outputs are in place."""
     check_layouts(cfg)
     dev = train_device(cfg)
     if len(fit_dirs) != len(cfg.seeds):
@@ -434,7 +505,10 @@ def run_combine_detector(cfg: DetectorTrainConfig, base_scene: dict, render: Ren
             m["average_layout"], m["average_layout_views"] = dict(cfg.average_layout), len(samples) - m["train_views"]
         m["render_train_s"] = round(time.perf_counter() - t0, 2)
         t1 = time.perf_counter()
-        members = [average_fit(net, samples, cfg, seed, curve, run.progress) for net, seed in zip(members, cfg.seeds)]
+        if resume is not None and len(resume) != len(cfg.seeds):
+            raise ValueError(f"run_combine_detector: {len(resume)} resume paths for detector.seeds = {list(cfg.seeds)}")
+        members = [average_fit(net, samples, cfg, seed, curve, run.progress, resume[i] if resume is not None else None)
+                   for i, (net, seed) in enumerate(zip(members, cfg.seeds))]
         m["average_s"] = round(time.perf_counter() - t1, 2)
         info["average"] = {"steps": cfg.average_steps, "lr": cfg.average_lr, "warmup": cfg.average_warmup,
                            **({"layout": dict(cfg.average_layout)} if cfg.average_layout else {})}

@@ -37,7 +37,7 @@ from drawer_lib.detect.builtin import (
 )
 from drawer_lib.detect.config import BuiltinDetectConfig, DetectorTrainConfig
 from drawer_lib.detect.masks import Detection, paint_detections
-from drawer_lib.detect.train import Sample, _crop_batch, fit_views, average_fit, check_layouts, class_weights, drop_fit_state, fit_detector, pixel_accuracy
+from drawer_lib.detect.train import Sample, _crop_batch, fit_views, average_fit, average_state_path, check_layouts, class_weights, drop_fit_state, fit_detector, pixel_accuracy
 from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.overlay import apply_overlay
@@ -404,6 +404,17 @@ def _stop_after(n: int):
     return progress
 
 
+def _term_at(n: int):
+    """A ``progress`` wrapper that sends this process SIGTERM (a cluster's time limit, a killed
+    ``dvc repro``) before its ``n + 1``-th item."""
+    def progress(it, **kw):
+        for i, x in enumerate(it):
+            if i == n:
+                os.kill(os.getpid(), signal.SIGTERM)
+            yield x
+    return progress
+
+
 def test_an_interrupted_fit_goes_on_to_the_weights_of_an_uninterrupted_one(tmp_path):
     """Stopped mid-fit (between two saves: what it did since the last one is kept at the
     interrupt) and rerun, then stopped at a save with no step after it and rerun: the weights
@@ -439,17 +450,9 @@ def test_a_signal_mid_fit_stops_it_at_the_end_of_that_step(tmp_path):
     ref, ref_losses = fit_detector(samples, cfg, seed=0)
     state = tmp_path / "0.pt"
 
-    def term_at(n: int):
-        def progress(it, **kw):
-            for i, x in enumerate(it):
-                if i == n:
-                    os.kill(os.getpid(), signal.SIGTERM)
-                yield x
-        return progress
-
     for n, kept in ((2, 3), (7, 8)):  # sent before step 3 runs (the handler runs in it), and before step 8
         with pytest.raises(KeyboardInterrupt, match=f"signal {int(signal.SIGTERM)}"):
-            fit_detector(samples, cfg, seed=0, progress=term_at(n), resume=state)
+            fit_detector(samples, cfg, seed=0, progress=_term_at(n), resume=state)
         assert torch.load(state, weights_only=False)["step"] == kept
         model, losses = fit_detector(samples, cfg, seed=0, resume=state)
         assert losses == ref_losses
@@ -539,6 +542,53 @@ def test_weight_averaging_is_the_mean_of_the_weights_after_the_warm_up():
     assert not torch.allclose(got["head.weight"], kept[-1]["head.weight"])
     assert not torch.allclose(got["head.weight"], before["head.weight"])
     assert pixel_accuracy(avg, samples) > 0.9  # still a detector
+
+
+def test_an_interrupted_averaging_goes_on_to_the_mean_of_an_uninterrupted_one(tmp_path, capsys):
+    """average_fit stopped before the warm-up ends, stopped between two saves after it, and
+    stopped by SIGTERM within a step, each rerun from its state: the mean, bit for bit, and the
+    logged losses of an averaging never stopped, the curve's rows once each. A finished one
+    keeps its state (a rerun takes no step) until dropped; a state saved while averaging
+    another fit's weights, or with another rate, is reported and not gone on from."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=20, batch=4, crop=32, lr=1e-2, log_every=2, checkpoint_every=4,
+                              average_steps=12, average_lr=5e-3, average_warmup=4)
+    model, _ = fit_detector(samples, cfg, seed=0)
+    ref = average_fit(model, samples, cfg, seed=3)
+    state = average_state_path(tmp_path / "resume" / "0.pt")
+    assert state.name == "0.average.pt"
+
+    for stop, interrupt, kept in ((2, _stop_after(2), 2), (9, _stop_after(9), 9), (6, _term_at(6), 7)):
+        with pytest.raises(KeyboardInterrupt):
+            average_fit(model, samples, cfg, seed=3, progress=interrupt, resume=state)
+        assert torch.load(state, weights_only=False)["step"] == kept, stop
+        run = StageRun("t", tmp_path / f"o{stop}", tmp_path / f"d{stop}", 0)
+        (tmp_path / f"d{stop}").mkdir()
+        got = average_fit(model, samples, cfg, seed=3, curve=run.curve(["seed", "loss"]), resume=state)
+        run._finish()
+        assert all(torch.equal(got.state_dict()[k], v) for k, v in ref.state_dict().items()), stop
+        steps = [int(r.split(",")[0]) for r in (tmp_path / f"d{stop}" / "curve.csv").read_text().split()[1:]]
+        assert steps == [2, 4, 6, 8, 10, 12]
+        assert torch.load(state, weights_only=False)["step"] == 12  # the finished one, until dropped
+        taken = []
+
+        def counting(it, **kw):
+            for x in it:
+                taken.append(x)
+                yield x
+
+        again = average_fit(model, samples, cfg, seed=3, progress=counting, resume=state)
+        assert taken == [] and all(torch.equal(again.state_dict()[k], v) for k, v in ref.state_dict().items())
+        drop_fit_state(state)
+        assert not state.exists() and not state.parent.exists()
+    other, _ = fit_detector(samples, cfg, seed=1)
+    for m, c in ((other, cfg), (model, dataclasses.replace(cfg, average_lr=1e-3))):
+        with pytest.raises(KeyboardInterrupt):
+            average_fit(m, samples, c, seed=3, progress=_stop_after(5), resume=state)
+        got = average_fit(model, samples, cfg, seed=3, resume=state)
+        assert "other settings or views, averaging from step 0" in capsys.readouterr().err
+        assert all(torch.equal(got.state_dict()[k], v) for k, v in ref.state_dict().items())
+        drop_fit_state(state)
 
 
 def test_the_averaging_settings_are_checked():
@@ -641,6 +691,7 @@ def test_detector_and_detect_stages_end_to_end(tmp_path, exact_capture):
     assert not all(torch.equal(one["state_dict"][k], avg["state_dict"][k]) for k in one["state_dict"])
     m3 = json.loads((d / "metrics.json").read_text())
     assert m3["average_steps"] == 4 and m3["train_views"] == 3 and m3["test_views"] == 3
+    assert not (tmp_path / "bench" / "detector_fit_resume").exists()  # the averaging's state, gone when done
     assert m3["fronts_2d_recall_test_members"] == each[:1] and "fronts_2d_recall_test" in m3
     assert (d / "curve.csv").read_text().splitlines()[0] == "step,wall_s,seed,loss"
     # averaged over the fit kitchens rendered twice, the second time with thinner gaps between fronts
