@@ -145,6 +145,16 @@ def _load_state(path: Path, fingerprint: str, what: str = "fitting") -> dict | N
     return state
 
 
+def _restore(state: dict, g: torch.Generator, **objects) -> list[tuple]:
+    """Load a saved state (:func:`_load_state`) into ``objects`` (name in the state -> a module or
+    optimiser), the crop generator ``g`` and torch's random stream; returns the logged rows."""
+    for name, obj in objects.items():
+        obj.load_state_dict(state[name])
+    g.set_state(state["generator"])
+    torch.set_rng_state(state["torch_rng"])
+    return [tuple(r) for r in state["rows"]]
+
+
 def _run_steps(start: int, total: int, take_step: Callable[[int], None], save: Callable[[int], None] | None,
                checkpoint_every: int, progress: Callable, desc: str, where: Path | None = None) -> None:
     """``take_step(step)`` for steps ``start`` .. ``total`` under ``progress``. With ``save`` (a
@@ -207,12 +217,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     state = _load_state(resume, fingerprint) if resume is not None else None
     start, wall0 = 1, 0.0
     if state is not None:
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["opt"])
-        sched.load_state_dict(state["sched"])
-        g.set_state(state["generator"])
-        torch.set_rng_state(state["torch_rng"])
-        rows = [tuple(r) for r in state["rows"]]
+        rows = _restore(state, g, model=model, opt=opt, sched=sched)
         start, wall0 = state["step"] + 1, state["wall_s"]
         print(f"[detector] going on from step {state['step']} of {cfg.steps} ({resume})", file=sys.stderr)
         if curve is not None:
@@ -299,12 +304,7 @@ def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig
     state = _load_state(resume, fingerprint, "averaging") if resume is not None else None
     start = 1
     if state is not None:
-        net.load_state_dict(state["net"])
-        avg.load_state_dict(state["avg"])
-        opt.load_state_dict(state["opt"])
-        g.set_state(state["generator"])
-        torch.set_rng_state(state["torch_rng"])
-        rows = [tuple(r) for r in state["rows"]]
+        rows = _restore(state, g, net=net, avg=avg, opt=opt)
         start = state["step"] + 1
         print(f"[detector] averaging fit {seed}: going on from step {state['step']} of {cfg.average_steps} ({resume})",
               file=sys.stderr)
