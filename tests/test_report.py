@@ -81,7 +81,10 @@ def outputs(tmp_path_factory):
          "margin": 4.1, "confidence": 0.98, "low_margin": False, "handle": None},
         {"segment": 3, "family": "fixed", "hinge": None, "runner_up": "drawer", "margin": 0.2, "confidence": 0.4,
          "low_margin": True, "handle": None},
-        {"segment": 4, "family": "rigid", "reason": "not planar"}]})
+        {"segment": 4, "family": "rigid", "reason": "not planar"},
+        # written as null where a front has no part or no runner-up (a video's built-in detections)
+        {"segment": 5, "family": "fixed", "hinge": None, "part": None, "runner_up": None, "margin": 0.3,
+         "confidence": 0.5, "low_margin": True, "handle": None}]})
     extremes = [{"extreme": "SDF density at β = 1e-5", "expect": "finite", "test": ROWS[0][2], "outcome": "passed",
                  "seconds": 0.01, "message": None}]
     data = collect(out, reports, [SCENE, "never_ran"], [], ["static_gs"], extremes)
@@ -115,10 +118,11 @@ def test_render_has_every_section_and_the_paper_columns(outputs):
     assert "never_ran: no swept grid" in md
     assert "http://" not in page and "https://" not in page and "<script" not in page  # nothing to fetch
     # the low-margin decisions, lowest first, a fixed front among them; the confident one not listed
-    assert "Low-margin decisions: 2 of 3 typed fronts" in md
+    assert "Low-margin decisions: 3 of 4 typed fronts" in md
     lines = md.splitlines()
     fixed = lines.index("| tiny | 3 | – (fixed) | fixed | drawer | 0.20 | 0.40 | none |")
-    assert lines[fixed + 1] == "| tiny | 1 | flap_0 | flap (bottom) | drawer | 0.59 | 0.63 | horizontal at (0.49, 0.90) |"
+    assert lines[fixed + 1] == "| tiny | 5 | – (fixed) | fixed | – | 0.30 | 0.50 | none |"
+    assert lines[fixed + 2] == "| tiny | 1 | flap_0 | flap (bottom) | drawer | 0.59 | 0.63 | horizontal at (0.49, 0.90) |"
     assert "| tiny | 2 | drawer_0 |" not in md
 
 

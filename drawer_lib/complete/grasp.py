@@ -4,7 +4,9 @@ The handle evidence of ``articulate`` (``Part.extra["handle"]``: its place ``a_u
 the front's unit square, ``orientation`` and ``size`` along the front's u and v, m) becomes a
 box standing proud of the front: a bar along its long side, a knob as a square block. The
 images give the handle's place and extent but not how far it stands out, so its depth is the
-config's (``proud``: 25-40 mm is the common standoff of bar handles and knobs). A part without
+config's (``proud``: 25-40 mm is the common standoff of bar handles and knobs), or, with
+``standoff: depth``, the standoff the capture's metric depth shows
+(:mod:`drawer_lib.complete.standoff`; a handle found flush gets no box). A part without
 handle evidence is grasped at its free edge: a door's edge opposite its hinge, a flap's edge
 opposite its hinge line, a drawer's top edge, a sliding panel's trailing edge.
 
@@ -34,7 +36,14 @@ class HandleConfig:
     in front of the front's outer face; ``thickness`` (m): a bar's extent across its length
     (and its depth: the grip); ``min_length`` / ``max_length`` (m): a bar's length is the
     evidence's extent clipped to these; ``knob`` (m): a round handle's side; ``edge_inset``
-    (m): a free-edge grasp lies this far inside the edge."""
+    (m): a free-edge grasp lies this far inside the edge. ``standoff``: where the handle's
+    collision box stands, ``config`` (its face at ``proud``) or ``depth`` (its face at the
+    standoff measured in the capture's metric depth where one was measured,
+    :mod:`drawer_lib.complete.standoff`; no box where the handle is flush); the grasp frame
+    stays at ``proud`` either way (where a gripper's pads close, fingertips short of the
+    front). ``min_points``: depth points a measurement needs (module
+    :mod:`~drawer_lib.complete.standoff`); ``max_views``: the train views it reads, evenly
+    spaced (a phone's 300 frames at 1280 x 960 are 370 M points)."""
 
     enabled: bool = True
     proud: float = 0.035
@@ -43,8 +52,17 @@ class HandleConfig:
     max_length: float = 0.6
     knob: float = 0.03
     edge_inset: float = 0.03
+    standoff: str = "config"
+    min_points: int = 20
+    max_views: int = 60
 
     def __post_init__(self):
+        if self.standoff not in ("config", "depth"):
+            raise ConfigError(f"complete.handle.standoff = {self.standoff!r} must be config or depth")
+        for k in ("min_points", "max_views"):
+            v = getattr(self, k)
+            if not (isinstance(v, int) and v >= 1):
+                raise ConfigError(f"complete.handle.{k} = {v!r} must be an integer >= 1")
         for k in ("proud", "thickness", "min_length", "max_length", "knob", "edge_inset"):
             v = getattr(self, k)
             if not (math.isfinite(v) and v > 0):
@@ -70,15 +88,25 @@ def _handle(part: Part) -> dict | None:
     return h
 
 
-def handle_box(part: Part, cfg: HandleConfig) -> Shape | None:
+def handle_box(part: Part, cfg: HandleConfig, standoff: dict | None = None) -> Shape | None:
     """The part's handle as a box (world frame, q = 0), or None without handle evidence. A bar
     along its long side (length: its evidence's extent, within ``min_length`` ..
     ``max_length`` and the front), ``thickness`` across it and deep, its face ``proud`` in
     front of the front; a knob a ``knob`` square block as deep. It lies inside the front's
-    rectangle (moved in where the evidence reaches past an edge), touching nothing else."""
+    rectangle (moved in where the evidence reaches past an edge), touching nothing else. With
+    ``cfg.standoff == "depth"`` and a measured ``standoff`` (a record of
+    :func:`drawer_lib.complete.standoff.measure_standoffs`), its face is at the measured
+    standoff above the measured front surface and it is at most that deep; None when the
+    handle was found flush."""
     h = _handle(part)
     if h is None or not cfg.enabled:
         return None
+    face, depth = cfg.proud, cfg.thickness
+    if cfg.standoff == "depth" and standoff is not None and standoff.get("standoff_m") is not None:
+        if standoff.get("flush"):
+            return None
+        face = float(standoff["standoff_m"]) + float(standoff.get("surface_offset_m") or 0.0)
+        depth = min(cfg.thickness, float(standoff["standoff_m"]))
     f = part.front
     R = front_frame(f.normal, f.u)
     w, hgt = f.size
@@ -94,8 +122,7 @@ def handle_box(part: Part, cfg: HandleConfig) -> Shape | None:
     # the centre inside the rectangle: the box never reaches past the front's edges
     cu = np.clip((h["a_u"] - 0.5) * w, -w / 2 + half_uv[0], w / 2 - half_uv[0])
     cv = np.clip((h["a_v"] - 0.5) * hgt, -hgt / 2 + half_uv[1], hgt / 2 - half_uv[1])
-    depth = cfg.thickness
-    n_mid = cfg.proud - depth / 2
+    n_mid = face - depth / 2
     center = np.asarray(f.center) + R[:, 0] * cu + R[:, 1] * cv + R[:, 2] * n_mid
     return box_shape(center, [half_uv[0], half_uv[1], depth / 2], R)
 

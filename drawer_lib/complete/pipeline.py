@@ -15,7 +15,9 @@
 5. **parts**: visual = the cut faces (+ a drawer's box), collision = the front panel as a box
    (inset by ``collision_clearance``), the handle as a box from its evidence
    (:mod:`~drawer_lib.complete.grasp`; the mesh's protrusion hull when there is none), a
-   drawer's box walls; and each part's grasp frame;
+   drawer's box walls; and each part's grasp frame. With metric depth, each handle's standoff
+   is measured in it (:mod:`~drawer_lib.complete.standoff`) and recorded with the grasp; the
+   box stands there with ``handle.standoff: depth``;
 6. **Gaussians**: the appearance model's Gaussians go to the body whose front slab holds their
    anchor face (``static`` otherwise, or a rigid object's when inside its bounds), plus flat
    Gaussians on the interiors' walls coloured from the cabinet, less those a training view
@@ -24,7 +26,8 @@
    side by side, and the collision's fidelity.
 
 What a scene does not need is skipped and written down (no articulated part: no interiors or
-cut; no rigid object: no solids; no appearance model: no Gaussians).
+cut; no rigid object: no solids; no appearance model: no Gaussians; no metric depth: no
+handle standoffs).
 """
 
 import time
@@ -46,11 +49,13 @@ from drawer_lib.complete.interiors.fit import build_interiors
 from drawer_lib.complete.interiors.texture import interior_colours
 from drawer_lib.complete.io import STATIC, write_complete
 from drawer_lib.complete.rigid import build_rigids
+from drawer_lib.complete.standoff import depth_views, measure_standoffs, standoff_summary
 from drawer_lib.complete.static_collision import collision_fidelity, static_collision
 from drawer_lib.errors import InputError
 from drawer_lib.geometry.boxes import front_frame
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
+from drawer_lib.io.manifest import read_manifest
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import LAYOUT, capture_name, stage_name
@@ -91,6 +96,16 @@ def _handle_hull(body: trimesh.Trimesh, part, max_proud: float, min_proud: float
     except Exception:  # coplanar points: no volume, no hull
         return []
     return [mesh_shape(np.asarray(h.vertices), np.asarray(h.faces))] if h.volume > 1e-9 else []
+
+
+def _no_metric_depth(cap: Capture) -> str | None:
+    """None when ``cap`` has metric depth on every frame, else why not."""
+    if not cap.has("depth_file_path"):
+        return "the capture has no depth maps"
+    mf = cap.root / capture_name("manifest")
+    if mf.is_file():
+        return read_manifest(mf).missing("metric_scale")
+    return None
 
 
 def _dc_colours(g: Gaussians) -> np.ndarray:
@@ -186,7 +201,19 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
               "collision_chamfer_l1": fid["chamfer_l1"], "collision_fscore_2cm": fid.get("fscore_2cm")})
     times["fidelity_s"] = time.perf_counter() - t0
 
-    # 5. parts
+    # 5. parts; the handles' standoffs in the capture's metric depth (drawer_lib/complete/standoff.py)
+    t0 = time.perf_counter()
+    standoffs: dict[str, dict] = {}
+    why = _no_metric_depth(cap)
+    if why is None and any(p.extra.get("handle") for p in arts):
+        frames = [int(i) for i in np.asarray(cap.train)[np.unique(np.linspace(0, len(cap.train) - 1, min(
+            len(cap.train), cfg.handle.max_views)).round().astype(int))]]
+        standoffs = measure_standoffs(arts, depth_views(cap, run.progress(frames, desc="handle standoffs")),
+                                      cfg.handle.min_points)
+        m |= standoff_summary(standoffs)
+    else:
+        run.skip("handle_standoff", why or "no part has handle evidence")
+    times["standoff_s"] = time.perf_counter() - t0
     bodies = []
     grasps: dict[str, dict] = {}
     n_handle = 0
@@ -197,9 +224,11 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
         # behind the outer face, one panel thick, inset by the clearance: reconstructed fronts
         # abut (shared edges) and must not touch their neighbours at q = 0
         panel = front_box(p.front, -cfg.cut.panel_thickness, 0.0, cfg.collision_clearance)
-        grip = handle_box(p, cfg.handle)
+        grip = handle_box(p, cfg.handle, standoffs.get(p.id))
         handle = [grip] if grip is not None else _handle_hull(pc.body, p, cfg.cut.protrusion)
         grasps[p.id] = grasp_frame(p, cfg.handle)
+        if p.id in standoffs:
+            grasps[p.id]["standoff"] = standoffs[p.id]
         n_handle += grip is not None
         collision = [Shape("box", box=panel)] + handle + moving_walls
         bodies.append(PartBody(p.id, p.kind, np.asarray(p.axis.origin), np.asarray(p.axis.direction), p.limits,

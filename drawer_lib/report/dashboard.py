@@ -295,7 +295,7 @@ def _low_margin(data: ReportData) -> Table:
         for r in sorted((r for r in sc.decisions if r.get("low_margin")), key=lambda r: r.get("margin") or 0.0):
             kind = r["family"] + (f" ({r['hinge']})" if r.get("hinge") else "")
             h = r.get("handle")
-            t.rows.append([sc.name, str(r["segment"]), r.get("part", "– (fixed)"), kind, r.get("runner_up", "–"),
+            t.rows.append([sc.name, str(r["segment"]), r.get("part") or "– (fixed)", kind, r.get("runner_up") or "–",
                            _f(r["margin"], ".2f"), _f(r.get("confidence"), ".2f"),
                            "none" if h is None else f"{h['orientation']} at ({h['a_u']:.2f}, {h['a_v']:.2f})"])
     return t

@@ -33,8 +33,10 @@ import json
 import math
 import time
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -58,6 +60,7 @@ from drawer_lib.sim.mjcf import INTEGRATOR_ENUM, load_twin
 COLLISION_FAIL = 0.01  # m: an arm contact deeper than this is a collision failure
 EMPTY_GRIP = 0.003  # m: fingers closer than this hold nothing
 AXIS_FAIL_DEG = 15.0
+T = TypeVar("T")
 
 
 @dataclass
@@ -71,6 +74,21 @@ class GroundTruth:
 def _phase_end(rec: Recording, phase: str) -> int:
     idx = np.flatnonzero(rec.phase == PHASES.index(phase))
     return int(idx[-1]) if len(idx) else len(rec.phase) - 1
+
+
+def choose_with_margin(passing: Iterable[tuple[float, T]], limit: float, margin: float) -> tuple[T | None, bool]:
+    """The base search's choice (:mod:`drawer_lib.robot.plan`): of ``passing`` ((deepest
+    contact m, candidate) in search order, read lazily), the first whose contact is at most
+    ``limit - margin``; else the first at most ``limit``, flagged (True); else (None, False)."""
+    held = None
+    for deepest, item in passing:
+        if deepest > limit:
+            continue
+        if deepest <= limit - margin:
+            return item, False
+        if held is None:
+            held = item
+    return held, held is not None
 
 
 def _twin_reason(rec: Recording, opened: bool) -> str | None:
@@ -179,23 +197,30 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
         a: dict = {"id": p.id, "kind": part_kind(p), "joint": p.kind}
         g = grasps.get(p.id)
         q_goal = cfg.open_fraction * min(p.limits[1], stops.get(p.id, p.limits[1]))
-        found, n_tried = None, 0
-        if g is not None:
-            fo = open_width(g, cfg)
+        n_tried = 0
+
+        def passing():  # (deepest contact, plan) of each base pose that passes the IK and the contact limit
+            nonlocal n_tried
             for base, pitch, flip in base_candidates(p, g, cfg.base, q_goal):
                 n_tried += 1
                 G = grasp_pose(g, pitch, flip)
                 ticks = task_path(p, G, cfg, fo, q_goal)
                 idx = key_ticks(ticks)
                 qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
-                if ep > tol[0] or er > tol[1] or any(
-                        ps.collisions(base, q, p.id, ticks[i].q_part, cfg.collision_depth, fo)
-                        for i, q in zip(idx, qs)):
+                if ep > tol[0] or er > tol[1]:
+                    continue
+                deepest = max((c[2] for i, q in zip(idx, qs)
+                               for c in ps.collisions(base, q, p.id, ticks[i].q_part, 0.0, fo)), default=0.0)
+                if deepest > cfg.collision_depth:
                     continue
                 qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
                 if ep <= 2 * tol[0] and er <= 2 * tol[1]:
-                    found = (base, pitch, flip, ticks, qs, ep, er)
-                    break
+                    yield deepest, (base, pitch, flip, ticks, qs, ep, er, deepest, n_tried)
+
+        found, low_margin = None, False
+        if g is not None:
+            fo = open_width(g, cfg)
+            found, low_margin = choose_with_margin(passing(), cfg.collision_depth, cfg.collision_margin)
         a["base_candidates_tried"] = n_tried
         t_plan += time.perf_counter() - t0
         if found is None:
@@ -205,9 +230,10 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
                 a["transfer"] = {"opened": False, "reason": "failed in the twin", "gt_id": gp.id if gp else None}
             attempts.append(a)
             continue
-        base, pitch, flip, ticks, qs, ep, er = found
+        base, pitch, flip, ticks, qs, ep, er, deepest, k_base = found
         a |= {"base": {"pos": list(base.pos), "yaw": base.yaw}, "pitch_rad": pitch, "flip": flip,
-              "ik_error_m": ep, "ik_error_rad": er, "q_goal": q_goal}
+              "ik_error_m": ep, "ik_error_rad": er, "q_goal": q_goal, "base_candidate": k_base,
+              "base_deepest_contact_m": deepest, "base_low_margin": low_margin}
         actions = np.column_stack([qs, [tk.finger for tk in ticks]])
         t0 = time.perf_counter()
         m = episode_model(twin_spec, base, option, cam, np.asarray(g["position"]))
@@ -315,27 +341,34 @@ def pick_and_place(cfg: RobotConfig, p: Part, q_open: float, twin_spec, ik: Pand
     idx = pick_key_ticks(ticks)
     tol = (cfg.ik_tol_m, math.radians(cfg.ik_tol_deg))
     pseudo = {"position": (0.5 * (pick + place)).tolist(), "approach": (-n).tolist(), "closing_axis": u.tolist()}
-    found, seen = None, set()
+    seen = set()
     search = replace(cfg.base, heights=pp.base_heights, distances=pp.base_distances, pitches_deg=(0.0,))
-    for base, _, _ in base_candidates(p, pseudo, search, 0.0):
-        key = (*np.round(base.pos, 4), round(base.yaw, 4))
-        if key in seen:
-            continue
-        seen.add(key)
-        qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
-        if ep > tol[0] or er > tol[1] or any(ps.collisions(base, q, p.id, q_open, cfg.collision_depth,
-                                                           max(0.0, ticks[i].finger)) for i, q in zip(idx, qs)):
-            continue
-        qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
-        if ep <= 2 * tol[0] and er <= 2 * tol[1]:
-            found = (base, qs)
-            break
+
+    def passing():  # (deepest contact, plan) of each base pose that passes the IK and the contact limit
+        for base, _, _ in base_candidates(p, pseudo, search, 0.0):
+            key = (*np.round(base.pos, 4), round(base.yaw, 4))
+            if key in seen:
+                continue
+            seen.add(key)
+            qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
+            if ep > tol[0] or er > tol[1]:
+                continue
+            deepest = max((c[2] for i, q in zip(idx, qs)
+                           for c in ps.collisions(base, q, p.id, q_open, 0.0, max(0.0, ticks[i].finger))), default=0.0)
+            if deepest > cfg.collision_depth:
+                continue
+            qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
+            if ep <= 2 * tol[0] and er <= 2 * tol[1]:
+                yield deepest, (base, qs, deepest, len(seen))
+
+    found, low_margin = choose_with_margin(passing(), cfg.collision_depth, cfg.collision_margin)
     out |= {"pick": pick.tolist(), "place": place.tolist(), "counter_z": counter_z,
             "base_candidates_tried": len(seen)}
     if found is None:
         return out | {"twin": {"placed": False, "reason": "unreachable"}}, []
-    base, qs = found
-    out["base"] = {"pos": list(base.pos), "yaw": base.yaw}
+    base, qs, deepest, k_base = found
+    out |= {"base": {"pos": list(base.pos), "yaw": base.yaw}, "base_candidate": k_base,
+            "base_deepest_contact_m": deepest, "base_low_margin": low_margin}
     actions = np.column_stack([qs, [tk.finger for tk in ticks]])
     m = episode_model(with_object(twin_spec, pick, pp), base, option, cam, pick)
     rec = run_episode(m, ticks, actions, p.id, PICK_PHASES, cam, start={p.id: q_open},
@@ -403,7 +436,8 @@ def _metrics(attempts: list[dict], transfer: bool) -> dict:
     opened = sum(a["twin"]["opened"] for a in attempts)
     closed = sum(a["twin"]["closed"] for a in attempts)
     m |= {"robot_success": (opened + closed) / (2 * n), "robot_open_success": opened / n,
-          "robot_close_success": closed / n}
+          "robot_close_success": closed / n,
+          "robot_low_margin_bases": sum(bool(a.get("base_low_margin")) for a in attempts)}
     reasons = Counter(a["twin"]["reason"] for a in attempts if a["twin"]["reason"])
     m |= {f"robot_fail_{r.replace(' ', '_')}": c for r, c in sorted(reasons.items())}
     kinds = sorted({a["kind"] for a in attempts})

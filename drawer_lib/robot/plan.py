@@ -19,7 +19,12 @@ offset, height, grasp pitch and flip, nearest first) and keeps the first where t
 every key pose of the path within ``ik_tol_m`` / ``ik_tol_deg`` and the arm, at those poses,
 touches nothing deeper than ``collision_depth``: neither the static scene, another part, nor,
 with its fingers open, the part it is about to grasp (a pose whose fingers sit inside the front
-would be stopped there in simulation).
+would be stopped there in simulation). A pose whose deepest contact is within
+``collision_margin`` of that limit is held back (the first such is kept) and the search goes
+on for one that clears the limit by the margin; the held-back one is taken only when none
+does, and the part is flagged. The static collision is boxes of 4 cm cells of the field, so a
+contact's depth moves by millimetres when the field moves by less than one (another machine's
+arithmetic): without the margin the search took another base pose there.
 """
 
 import math
@@ -103,8 +108,9 @@ class RobotConfig:
     ``grip_force``: what each finger squeezes with (N; the Panda hand's continuous force is
     70 N); ``finger_clearance``: the open fingers stand this far from the handle's sides (an
     8 cm open gripper would strike the fronts above and below a drawer's bar); ``camera``: width x height of the recorded stream (0 turns it off).
-    ``transfer``: replay every demonstration in the ground-truth kitchen when the scene has one.
-    ``max_parts``: at most this many parts per scene (None: all). ``pick_place``: the
+    ``collision_depth``, ``collision_margin``: the base search's contact limit and its margin
+    (module doc). ``transfer``: replay every demonstration in the ground-truth kitchen when the
+    scene has one. ``max_parts``: at most this many parts per scene (None: all). ``pick_place``: the
     pick-and-place task (:class:`PickPlaceConfig`)."""
 
     open_fraction: float = 0.8
@@ -121,6 +127,7 @@ class RobotConfig:
     ik_tol_m: float = 0.005
     ik_tol_deg: float = 3.0
     collision_depth: float = 0.005
+    collision_margin: float = 0.0015
     camera: tuple[int, ...] = (96, 72)
     transfer: bool = True
     max_parts: int | None = None
@@ -138,6 +145,9 @@ class RobotConfig:
                 raise ConfigError(f"robot.{k} = {v} must be finite and > 0")
         if not 1 <= self.fps <= 1000:
             raise ConfigError(f"robot.fps = {self.fps} must be in [1, 1000]")
+        if not (math.isfinite(self.collision_margin) and 0 <= self.collision_margin < self.collision_depth):
+            raise ConfigError(f"robot.collision_margin = {self.collision_margin} must be in [0, collision_depth = "
+                              f"{self.collision_depth}) (m)")
         if len(self.camera) != 2 or min(self.camera) < 0:
             raise ConfigError(f"robot.camera = {self.camera} must be [width, height] >= 0")
 

@@ -306,3 +306,28 @@ def test_the_block_avoids_what_stands_on_the_counter_and_needs_a_counter():
     assert spot(replace(model, static_collision=no_top)) is None
     with pytest.raises(ConfigError, match="gripper's opening"):
         PickPlaceConfig(size=(0.04, 0.09, 0.05))
+
+
+def test_the_base_search_takes_a_pose_that_clears_the_contact_limit_by_the_margin():
+    """Contacts (m) in search order, limit 5 mm, margin 1.5 mm: a pose 4.7 mm deep is held back
+    for a later one at 2 mm, and the search stops there; with none clear, the first held back
+    is taken and flagged; a pose over the limit is never taken."""
+    from drawer_lib.robot.pipeline import choose_with_margin
+
+    read = []
+
+    def passing(items):
+        for d, name in items:
+            read.append(name)
+            yield d, name
+
+    assert choose_with_margin(passing([(0.0047, "a"), (0.002, "b"), (0.001, "c")]), 0.005, 0.0015) == ("b", False)
+    assert read == ["a", "b"]  # read lazily: nothing after the choice is planned
+    assert choose_with_margin(passing([(0.006, "x"), (0.0042, "a"), (0.0049, "b")]), 0.005, 0.0015) == ("a", True)
+    assert choose_with_margin(passing([(0.006, "x")]), 0.005, 0.0015) == (None, False)
+    assert choose_with_margin(passing([(0.0047, "a")]), 0.005, 0.0) == ("a", False)  # no margin: the first
+    assert choose_with_margin(passing([(0.0035, "a")]), 0.005, 0.0015) == ("a", False)  # at the margin: clear
+    with pytest.raises(ConfigError, match="collision_margin"):
+        RobotConfig(collision_margin=0.005)
+    with pytest.raises(ConfigError, match="collision_margin"):
+        RobotConfig(collision_margin=-0.001)
