@@ -206,8 +206,8 @@ def run_complete(cfg: CompleteConfig, cap: Capture, inp: CompleteInputs, run: St
     standoffs: dict[str, dict] = {}
     why = _no_metric_depth(cap)
     if why is None and any(p.extra.get("handle") for p in arts):
-        frames = [int(i) for i in np.asarray(cap.train)[np.unique(np.linspace(0, len(cap.train) - 1, min(
-            len(cap.train), cfg.handle.max_views)).round().astype(int))]]
+        pick = np.unique(np.linspace(0, len(cap.train) - 1, min(len(cap.train), cfg.handle.max_views)).round())
+        frames = [cap.train[int(k)] for k in pick]  # at most max_views train views, evenly spaced
         standoffs = measure_standoffs(arts, depth_views(cap, run.progress(frames, desc="handle standoffs")),
                                       cfg.handle.min_points)
         m |= standoff_summary(standoffs)

@@ -21,8 +21,9 @@ square-on, while its sides spread over every height below it and pull a median d
 2.5 mm on a 30 mm block with 1 to 4 mm of noise; the densest height is within 0.5 mm there).
 ``noise_m`` records the depth's spread on the ring (1.4826 x its median absolute deviation:
 the sensor's noise and whatever else the ring holds, a neighbour's edge). With fewer than
-``min_points`` of them over at least ``min_points`` box points the handle is ``flush`` (a recessed pull, or one the depth does not resolve). Too few ring or box points: not
-measured, with the reason. Lengths m; the depth must be metric.
+``min_points`` of them over at least ``min_points`` box points the handle is ``flush`` (a
+recessed pull, or one the depth does not resolve). Too few ring or box points: not measured,
+with the reason. Lengths m; the depth must be metric.
 """
 
 import math
@@ -71,28 +72,27 @@ def measure_standoffs(parts: list[Part], views: Iterable[tuple[np.ndarray, Intri
     Returns {part id: record}: ``standoff_m`` (m, the handle's outer face above the front's
     surface; 0.0 when ``flush``), ``flush`` (bool), ``points`` (box points above ``MIN_OUT``),
     ``box_points``, ``ring_points``, ``views`` (views with a handle point), ``noise_m`` (the
-depth's noise on the ring, m), ``iqr_m`` (the
-    spread of the handle points' heights), ``surface_offset_m`` (the front's surface measured,
-    relative to the part's plane); or ``standoff_m`` None and ``why``. Parts without handle
-    evidence are left out."""
+    depth's noise on the ring, m), ``iqr_m`` (the spread of the handle points' heights),
+    ``surface_offset_m`` (the front's surface measured, relative to the part's plane); or
+    ``standoff_m`` None and ``why``. Parts without handle evidence are left out."""
     if min_points < 1:
         raise ValueError(f"measure_standoffs: min_points = {min_points} must be >= 1")
-    frames = {}
+    fronts = {}
     for p in parts:
         r = handle_rect(p)
         if r is not None:
-            frames[p.id] = (np.asarray(p.front.center, np.float64), front_frame(p.front.normal, p.front.u),
+            fronts[p.id] = (np.asarray(p.front.center, np.float64), front_frame(p.front.normal, p.front.u),
                             np.asarray(p.front.size, np.float64), r)
-    ring: dict[str, list[np.ndarray]] = {k: [] for k in frames}
-    box: dict[str, list[np.ndarray]] = {k: [] for k in frames}
-    box_view: dict[str, list[np.ndarray]] = {k: [] for k in frames}
+    ring: dict[str, list[np.ndarray]] = {k: [] for k in fronts}
+    box: dict[str, list[np.ndarray]] = {k: [] for k in fronts}
+    box_view: dict[str, list[np.ndarray]] = {k: [] for k in fronts}
     for vi, (z, intr, c2w) in enumerate(views):
         z = np.asarray(z, np.float32)
         ok = np.isfinite(z) & (z > 0)
         if not ok.any():
             continue
         P = (pixel_dirs(intr)[ok] * z[ok, None].astype(np.float64)) @ np.asarray(c2w)[:3, :3].T + np.asarray(c2w)[:3, 3]
-        for pid, (c, R, (w, h), (cu, cv, hu, hv)) in frames.items():
+        for pid, (c, R, (w, h), (cu, cv, hu, hv)) in fronts.items():
             L = (P - c) @ R
             du, dv, n = np.abs(L[:, 0] - cu), np.abs(L[:, 1] - cv), L[:, 2]
             near = (np.abs(L[:, 0]) <= w / 2) & (np.abs(L[:, 1]) <= h / 2) & (n > -RING_N)
@@ -103,7 +103,7 @@ depth's noise on the ring, m), ``iqr_m`` (the
             box[pid].append(n[in_box])
             box_view[pid].append(np.full(int(in_box.sum()), vi))
     out = {}
-    for pid in frames:
+    for pid in fronts:
         rn, bn, bv = (np.concatenate(x[pid]) if x[pid] else np.zeros(0) for x in (ring, box, box_view))
         rec: dict = {"box_points": int(len(bn)), "ring_points": int(len(rn))}
         if len(rn) < min_points or len(bn) < min_points:

@@ -11,7 +11,7 @@ is the transfer.
 """
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -62,6 +62,12 @@ class PlanningScene:
         mujoco.mj_kinematics(self.m, d)
         mujoco.mj_collision(self.m, d)
         return arm_collisions(self.m, d, self.ix.geoms, self.ix.hand_geoms, -1, depth)
+
+    def deepest_contact(self, base: BasePose, part_id: str, poses: Iterable[tuple[np.ndarray, float, float]]) -> float:
+        """The robot's deepest contact (m, 0 when none) over ``poses`` ((arm joints, the part's
+        joint, each finger's opening m), as :meth:`collisions` takes them) with its base at ``base``."""
+        return max((c[2] for q_arm, q_part, finger in poses
+                    for c in self.collisions(base, q_arm, part_id, q_part, 0.0, finger)), default=0.0)
 
 
 def light_visuals(spec: mujoco.MjSpec, max_faces: int) -> int:

@@ -209,8 +209,7 @@ def run_robot(cfg: RobotConfig, twin_dir: Path, parts_path: Path, run: StageRun,
                 qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
                 if ep > tol[0] or er > tol[1]:
                     continue
-                deepest = max((c[2] for i, q in zip(idx, qs)
-                               for c in ps.collisions(base, q, p.id, ticks[i].q_part, 0.0, fo)), default=0.0)
+                deepest = ps.deepest_contact(base, p.id, ((q, ticks[i].q_part, fo) for i, q in zip(idx, qs)))
                 if deepest > cfg.collision_depth:
                     continue
                 qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
@@ -353,8 +352,7 @@ def pick_and_place(cfg: RobotConfig, p: Part, q_open: float, twin_spec, ik: Pand
             qs, ep, er = solve_path(ik, base, ticks, idx, give_up=tol)
             if ep > tol[0] or er > tol[1]:
                 continue
-            deepest = max((c[2] for i, q in zip(idx, qs)
-                           for c in ps.collisions(base, q, p.id, q_open, 0.0, max(0.0, ticks[i].finger))), default=0.0)
+            deepest = ps.deepest_contact(base, p.id, ((q, q_open, max(0.0, ticks[i].finger)) for i, q in zip(idx, qs)))
             if deepest > cfg.collision_depth:
                 continue
             qs, ep, er = solve_path(ik, base, ticks, list(range(len(ticks))), q0=qs[0])
