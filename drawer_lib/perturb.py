@@ -1,6 +1,9 @@
 """Controlled geometric error for robustness ablations (``appearance.anchor_displacement``, the
 ``ste_displaced_1cm`` experiment): a smooth random displacement of a mesh along its vertex
 normals (a stand-in for the low-frequency bumps of a reconstructed surface). Off by default.
+:func:`jitter_mesh`: independent noise on every vertex, of the size another machine's last
+bits move a reconstructed mesh by (the stability studies of ``decompose.mesh_jitter`` and
+``scripts/decision_stability.py``).
 
 The field is a random Fourier feature approximation of a stationary Gaussian process with a
 squared-exponential kernel of length ``wavelength_m``:
@@ -45,3 +48,12 @@ def displace_along_normals(mesh: trimesh.Trimesh, rms_m: float, wavelength_m: fl
     n = np.where(np.isfinite(n), n, 0.0)
     d = np.where(np.linalg.norm(n, axis=1) > 0.5, d, 0.0)
     return trimesh.Trimesh(v + d[:, None] * n, np.asarray(mesh.faces), process=False), d
+
+
+def jitter_mesh(mesh: trimesh.Trimesh, sigma: float, seed: int | list[int]) -> trimesh.Trimesh:
+    """``mesh`` with every vertex moved by isotropic Gaussian noise of ``sigma`` m (same faces)."""
+    if not sigma >= 0:
+        raise ValueError(f"jitter_mesh: sigma = {sigma} must be >= 0")
+    rng = np.random.default_rng(seed)
+    v = np.asarray(mesh.vertices, np.float64) + rng.normal(0.0, sigma, (len(mesh.vertices), 3))
+    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)

@@ -255,7 +255,9 @@ class TypesConfig:
     ``filler_width`` (m) is a fixed panel too: a filler strip, or the sliver a cut leaves where a
     mask spilt onto a neighbour (real narrow pull-outs carry a handle); null turns this off. A score decision whose margin over the runner-up is
     below ``low_margin`` (log-odds) is marked ``low_margin`` in ``decisions.json`` and
-    ``parts.json``, listed by the report and marked in the viewer. ``sliding_needs_track``: the
+    ``parts.json``, listed by the report and marked in the viewer; ``near_segment``: so is every
+    front of a segment decompose selected by a margin another machine's mesh could cross (its
+    ``near`` rows in ``segments.json``). ``sliding_needs_track``: the
     score rule types a front sliding only when it has a partner on another track or a track
     along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`).
     ``hinged_min_height`` (m): the score rule types a front shorter than this neither a
@@ -290,6 +292,7 @@ class TypesConfig:
     min_support: int = 5
     filler_width: float | None = 0.25
     low_margin: float = 1.0
+    near_segment: bool = True
     sliding_needs_track: bool = True
     hinged_min_height: float | None = 0.2
     window_contrast: float | None = 0.15

@@ -61,7 +61,8 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     bits could cross (a gap line one cell of the rectified front from its coverage bound, a
     width one cell from ``max_width``, a depth or outline step within
     :data:`~drawer_lib.articulation.gaps.STEP_BAND` of its bounds) is listed in ``near_cuts``,
-    and the segment's fronts are marked ``low_margin``. A planar segment whose label votes are mostly no front
+    and the segment's fronts are marked ``low_margin``; so are those of a segment decompose selected
+    by such a margin (its ``near`` rows, copied to the info's ``near_segment``). A planar segment whose label votes are mostly no front
     label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part.
     Last, coplanar neighbours share their edges (:func:`~drawer_lib.articulation.fronts.share_edges`,
     on each front's own face centres); a side that moved in by more than half of
@@ -117,7 +118,7 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                 continue
             info = ({"rect_from_masks": used} | ({"piece": k, "of": len(pieces)} if len(pieces) > 1 else {})
                     | ({"mesh_cuts": cuts} if cuts else {}) | ({"near_cuts": near_cuts} if near_cuts else {})
-                    | too_wide | ({"even_pieces": even} if even else {}))
+                    | too_wide | ({"even_pieces": even} if even else {}) | ({"near_segment": s.near} if s.near else {}))
             fits.append((s, piece, info))
     fits = drop_duplicate_pieces(fits, cfg.split.duplicate_iou, report)
     plane_tol = 0.75 * cfg.joints.sliding_step[0]  # coplanar: closer than the nearest sliding track
@@ -278,7 +279,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                 if "excluded" in terms and k not in partner else None)
         gave = gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
         # a threshold another machine could cross: a glazed front's rule, a cut, the choice of the pull
-        near = bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or k in near_handles
+        near = (bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or k in near_handles
+                or (cfg.types.near_segment and bool(info.get("near_segment"))))
         pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
             reason = pdec.reason + gave

@@ -17,17 +17,9 @@ from drawer_lib.articulation.pipeline import run_articulate
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.parts import PartsFile, read_parts
 from drawer_lib.metrics.articulation import match_parts, part_kind
+from drawer_lib.perturb import jitter_mesh
 from drawer_lib.paths import stage_name
 from drawer_lib.runner import stage_run
-
-
-def jitter_mesh(mesh: trimesh.Trimesh, sigma: float, seed: int) -> trimesh.Trimesh:
-    """``mesh`` with every vertex moved by isotropic Gaussian noise of ``sigma`` m (same faces)."""
-    if not sigma >= 0:
-        raise ValueError(f"jitter_mesh: sigma = {sigma} must be >= 0")
-    rng = np.random.default_rng(seed)
-    v = np.asarray(mesh.vertices, np.float64) + rng.normal(0.0, sigma, (len(mesh.vertices), 3))
-    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
 
 
 def compare_parts(ref: PartsFile, other: PartsFile) -> list[dict]:

@@ -1,5 +1,6 @@
 """Config of the ``decompose`` stage (conf/decompose/). Lengths in metres, angles in degrees."""
 
+import math
 from dataclasses import dataclass, field
 
 from drawer_lib.errors import ConfigError
@@ -88,6 +89,7 @@ class DecomposeConfig:
     planar_frac: float = 0.6
     seed: int = 42
     louvain_max_sweeps: int = 64
+    mesh_jitter: float = 0.0  # stability studies only: Gaussian noise of this sigma (m) on the mesh's vertices first
     geometric: GeometricConfig = field(default_factory=GeometricConfig)
 
     def __post_init__(self):
@@ -97,6 +99,8 @@ class DecomposeConfig:
             raise ConfigError(f"decompose.resolutions = {self.resolutions} must be positive numbers")
         if any(not 0 < r <= 1 for r in self.component_rates):
             raise ConfigError(f"decompose.component_rates = {self.component_rates} must lie in (0, 1]")
+        if not (self.mesh_jitter >= 0 and math.isfinite(self.mesh_jitter)):
+            raise ConfigError(f"decompose.mesh_jitter = {self.mesh_jitter}: must be a finite value >= 0")
         if self.louvain_max_sweeps < 1:
             raise ConfigError(f"decompose.louvain_max_sweeps = {self.louvain_max_sweeps} must be >= 1")
         if not 0 < self.min_score <= 1 or not 0 < self.dup_overlap <= 1:

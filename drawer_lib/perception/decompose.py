@@ -11,7 +11,10 @@
    two, not the median; a frame whose masks miss the candidate altogether is no evidence
    either way (``missing_weight``), since a detector misses the same front in many views.
 5. Greedy selection by score removes duplicates (the same front found at several resolutions);
-   normal consistency marks planar segments (fronts) against the rest (objects).
+   normal consistency marks planar segments (fronts) against the rest (objects). A selection
+   that another machine's mesh could undo (a score near its threshold or near a rival's, an
+   overlap near the duplicate bound, support one frame from its bound) is listed in the
+   segment's ``near`` rows, and a candidate that nearly became a segment in ``near_missed``.
 
 Label votes (the labels of the best-matching masks) are kept as hints for the articulate stage;
 they never decide anything here.
@@ -29,6 +32,9 @@ from drawer_lib.perception.louvain import louvain
 from drawer_lib.perception.views import MeshViews, adjacency_edges, connected_components, largest_component
 
 HANDLE_LABELS = ("handle", "knob", "pull")
+SCORE_BAND = 0.02  # back-projection IoU: a score this close to min_score or to a rival's can swap on another mesh
+OVERLAP_BAND = 0.05  # share of a candidate's faces: this close to dup_overlap
+SAME_FRONT_IOU = 0.5  # faces overlapping this much: the same front either way (as the metrics match fronts)
 
 
 @dataclass
@@ -54,13 +60,14 @@ class Segment:
     source: str = "detections"
     source_candidate: int = -1  # index of the candidate it came from (within one run)
     matched: list = field(default_factory=list)  # [(frame stem, detection id)] of the masks it matches
+    near: list = field(default_factory=list)  # selections within a band of their bounds (select_segments)
 
     def to_json(self) -> dict:
         return {"id": self.id, "n_faces": int(len(self.faces)), "score": round(float(self.score), 4),
                 "support_frames": int(self.support), "labels": self.labels, "planar": bool(self.planar),
                 "normal": [round(float(x), 5) for x in self.normal], "area_m2": round(float(self.area), 5),
                 "centroid": [round(float(x), 5) for x in self.centroid], "source": self.source,
-                "matched": [[str(a), int(b)] for a, b in self.matched]}
+                "matched": [[str(a), int(b)] for a, b in self.matched]} | ({"near": self.near} if self.near else {})
 
 
 def read_detections(cap: Capture, views: MeshViews) -> list[tuple[np.ndarray, list[dict]]]:
@@ -330,32 +337,81 @@ def face_geometry(mesh: trimesh.Trimesh, faces: np.ndarray, planar_deg: float) -
     return mn, area, (a[:, None] * c).sum(0) / area, frac
 
 
+def face_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """IoU of two sorted arrays of unique face ids."""
+    inter = len(np.intersect1d(a, b, assume_unique=True))
+    return inter / max(len(a) + len(b) - inter, 1)
+
+
 def select_segments(cands: list[np.ndarray], scores: list[tuple], mesh: trimesh.Trimesh,
-                    cfg: DecomposeConfig) -> list[Segment]:
+                    cfg: DecomposeConfig, near_missed: list[dict] | None = None) -> list[Segment]:
     """Greedy by score (then size) over the candidates scored (:func:`backprojection_scores`) at
     least ``min_score`` in at least ``min_frames`` frames and ``min_detected`` of the frames that
     see them: a candidate of which more than ``dup_overlap`` is already taken by better segments
-    is a duplicate; otherwise it is accepted without the taken faces."""
+    is a duplicate; otherwise it is accepted without the taken faces.
+
+    Margins (another machine's mesh moves a score by a few pixels of IoU): each segment's
+    ``near`` lists the selections it passed by less than a band, as ``{"step", "margin"}``:
+    ``score`` (within :data:`SCORE_BAND` of ``min_score``), ``support`` (one frame fewer
+    fails), ``overlap`` (its share already taken lies within :data:`OVERLAP_BAND` under
+    ``dup_overlap``) and ``rival`` (a candidate scored within :data:`SCORE_BAND` under it was
+    dropped as its duplicate, though their faces overlap less than :data:`SAME_FRONT_IOU`: the
+    other order gives a segment on another front). ``near_missed`` (if given) receives the candidates
+    that failed one selection by less than its band and passed the others (``candidate``,
+    ``step``, ``margin``, ``n_faces``): a segment on another machine."""
     order = sorted(range(len(cands)), key=lambda k: (-scores[k][0], -len(cands[k])))
     taken = np.full(len(mesh.faces), -1, np.int64)
     segs: list[Segment] = []
     for k in order:
         s, support, votes, _, seen = scores[k]
-        if s < cfg.min_score or support < cfg.min_frames or support < cfg.min_detected * seen:
-            continue
         f = cands[k]
         owners = taken[f]
-        if (owners >= 0).sum() > cfg.dup_overlap * len(f):  # mostly explained by a better segment
+        n_taken = int((owners >= 0).sum())
+        share = n_taken / max(len(f), 1)
+        need = max(cfg.min_frames, cfg.min_detected * seen)
+        # each selection's clearance over its bound and its band; which of them failed
+        checks = {"score": (s - cfg.min_score, SCORE_BAND), "support": (support - need, 1.0),
+                  "overlap": (cfg.dup_overlap - share, OVERLAP_BAND if n_taken else 0.0)}
+        bad = {"score": s < cfg.min_score, "support": support < cfg.min_frames or support < cfg.min_detected * seen,
+               "overlap": n_taken > cfg.dup_overlap * len(f)}
+        failed = [st for st in checks if bad[st]]
+        free = int((owners < 0).sum())
+        if failed or free < cfg.min_faces:
+            if failed == ["overlap"]:  # a duplicate: of which segment, how close in score
+                seg = segs[int(np.bincount(owners[owners >= 0]).argmax())]
+                gap = seg.score - s
+                if gap < SCORE_BAND and face_iou(cands[seg.source_candidate], f) < SAME_FRONT_IOU:
+                    seg.near.append({"step": "rival", "margin": round(float(gap), 4), "candidate": int(k)})
+            if near_missed is not None and free >= cfg.min_faces and len(failed) == 1:
+                m, band = checks[failed[0]]
+                if -m < band:  # failed by less than its band
+                    near_missed.append({"candidate": int(k), "step": failed[0], "margin": round(float(m), 4),
+                                        "n_faces": int(len(f))})
             continue
+        near = [{"step": st, "margin": round(float(m), 4)} for st, (m, band) in checks.items() if m < band]  # passed by less
         f = f[owners < 0]
-        if len(f) < cfg.min_faces:
-            continue
         n, area, c, frac = face_geometry(mesh, f, cfg.planar_deg)
         seg = Segment(len(segs), f, s, support, dict(votes.most_common()), frac >= cfg.planar_frac, n, area, c,
-                      source_candidate=k)
+                      source_candidate=k, near=near)
         taken[f] = seg.id
         segs.append(seg)
     return segs
+
+
+def near_summary(segs: list[Segment], near_missed: list[dict]) -> dict:
+    """What decompose's metrics record of the selections near their bounds
+    (:func:`select_segments`): the bands, the segments with a ``near`` row, the rows per step,
+    and the candidates that nearly became segments.
+
+    >>> near_summary([Segment(0, np.arange(3), 0.56, 5, near=[{"step": "score", "margin": 0.01}])], [])["near_steps"]
+    {'score': 1, 'support': 0, 'overlap': 0, 'rival': 0}
+    """
+    rows = [r for s in segs for r in s.near]
+    return {"near_band": {"score": SCORE_BAND, "overlap": OVERLAP_BAND, "same_front_iou": SAME_FRONT_IOU},
+            "near_segments": sum(bool(s.near) for s in segs),
+            "near_steps": {k: sum(r["step"] == k for r in rows) for k in ("score", "support", "overlap", "rival")},
+            "near_missed": len(near_missed),
+            "near_missed_steps": {k: sum(r["step"] == k for r in near_missed) for k in ("score", "support", "overlap")}}
 
 
 def grow_segments(segs: list[Segment], matched: list[list[tuple[int, int]]], views: MeshViews,
@@ -418,11 +474,13 @@ def decompose_from_detections(cap: Capture, views: MeshViews, cfg: DecomposeConf
     min_px = max(4, int(round(cfg.min_px_frac * cap.intrinsics.width * cap.intrinsics.height)))
     scores = backprojection_scores(cands, views, label_maps, masks, min_px, cfg.band_px, progress,
                                    cfg.missing_weight, cfg.missing_cover)
-    segs = select_segments(cands, scores, views.mesh, cfg)
+    near_missed: list[dict] = []
+    segs = select_segments(cands, scores, views.mesh, cfg, near_missed)
     for sg in segs:
         sg.matched = [(cap.frames[views.frames[t]].stem, d) for t, d in scores[sg.source_candidate][3]]
     if cfg.grow:
         grow_segments(segs, [scores[s.source_candidate][3] for s in segs], views, label_maps, edges, cfg)
     info = {"masks": len(masks), "graph_edges": int(len(ge)), "candidates": len(cands), "segments": len(segs),
-            "planar_segments": sum(s.planar for s in segs), "handle_faces": int((handle_hits > 0).sum()), **lv}
+            "planar_segments": sum(s.planar for s in segs), "handle_faces": int((handle_hits > 0).sum()), **lv,
+            **near_summary(segs, near_missed), "near_missed_rows": near_missed}
     return segs, handle_hits, info

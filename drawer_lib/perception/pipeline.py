@@ -33,8 +33,13 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, mesh_path: Path, run: Stag
     manifest = capture_manifest(cap)
     cap = at_working_size(cap, cfg.max_side)
     run.metrics.update(working_size_metrics(cap))
-    mesh = perception_mesh(load_mesh(mesh_path, "run the mesh stage first"), cfg.max_faces, cfg.max_edge, cap,
-                           list(cap.train))
+    mesh = load_mesh(mesh_path, "run the mesh stage first")
+    if cfg.mesh_jitter > 0:  # a stability study's run, not a result: another machine's last bits, drawn
+        from drawer_lib.perturb import jitter_mesh
+
+        mesh = jitter_mesh(mesh, cfg.mesh_jitter, seed=[cfg.seed, round(cfg.mesh_jitter * 1e12)])
+        run.metrics["mesh_jitter"] = cfg.mesh_jitter
+    mesh = perception_mesh(mesh, cfg.max_faces, cfg.max_edge, cap, list(cap.train))
     has_det = cap.has("detections_path")
     source = cfg.source
     if source == "auto":
@@ -53,11 +58,13 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, mesh_path: Path, run: Stag
         from drawer_lib.perception.geometric import decompose_geometric
 
         segs, handle_hits, info = decompose_geometric(cap, views, cfg.geometric, cfg)
+    near_missed = info.pop("near_missed_rows", [])
     mesh.export(run.out("mesh"))
     np.savez_compressed(run.out("face_labels"), labels=face_labels(len(mesh.faces), segs), handle_hits=handle_hits,
                         face_views=views.face_frames())
     write_json(run.out("segments"), {"schema": SEGMENTS_SCHEMA, "source": source, "n_faces": int(len(mesh.faces)),
-                                     "segments": [s.to_json() for s in segs]})
+                                     "segments": [s.to_json() for s in segs]}
+               | ({"near_missed": near_missed} if near_missed else {}))
     return {"source": source, "n_segments": len(segs), "n_planar": sum(s.planar for s in segs),
             "mesh_faces": int(len(mesh.faces)), "views_s": round(t_views, 3), **info}
 
@@ -84,5 +91,5 @@ def load_segments(d: Path) -> tuple[trimesh.Trimesh, list[Segment], np.ndarray, 
         segs.append(Segment(int(s["id"]), np.nonzero(labels == int(s["id"]))[0], float(s["score"]),
                             int(s["support_frames"]), dict(s["labels"]), bool(s["planar"]), np.asarray(s["normal"]),
                             float(s["area_m2"]), np.asarray(s["centroid"]), s.get("source", "detections"),
-                            matched=[(str(a), int(b)) for a, b in s.get("matched", [])]))
+                            matched=[(str(a), int(b)) for a, b in s.get("matched", [])], near=list(s.get("near", []))))
     return mesh, segs, hits, face_views

@@ -7,8 +7,9 @@ import pytest
 import trimesh
 
 from drawer_lib.articulation.joints import hinge_axis
-from drawer_lib.articulation.robustness import compare_parts, jitter_mesh, stability_counts
+from drawer_lib.articulation.robustness import compare_parts, stability_counts
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile
+from drawer_lib.perturb import jitter_mesh
 
 A = Front((1.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.7))
 B = Front((2.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.2))

@@ -14,8 +14,8 @@ from drawer_lib.io.capture import load_capture
 from drawer_lib.io.parts import read_parts
 from drawer_lib.metrics.articulation import articulation_metrics
 from drawer_lib.perception.config import DecomposeConfig
-from drawer_lib.perception.decompose import (MaskRecord, absorb_handles, cooccurrence_graph, face_geometry,
-                                             louvain_candidates, tolerant_ious)
+from drawer_lib.perception.decompose import (SCORE_BAND, MaskRecord, absorb_handles, cooccurrence_graph, face_geometry,
+                                             louvain_candidates, near_summary, select_segments, tolerant_ious)
 from drawer_lib.perception.pipeline import load_segments, run_decompose
 from drawer_lib.runner import StageRun
 
@@ -288,3 +288,95 @@ def test_tolerant_iou_ignores_a_band_at_the_border_and_matches_a_slow_reference(
     thin[8:10, 5:35] = True
     lab2 = np.where(thin, 1, 0)
     assert tolerant_ious(thin, lab2, np.bincount(lab2.ravel(), minlength=2), 2)[1] == pytest.approx(1.0)
+
+
+def _strip(n_faces: int) -> trimesh.Trimesh:
+    """``n_faces`` triangles of one plane (x, z), two per unit square."""
+    n = n_faces // 2
+    x = np.arange(n + 1, dtype=float)
+    v = np.concatenate([np.stack([x, np.zeros_like(x), np.zeros_like(x)], 1), np.stack([x, np.zeros_like(x), np.ones_like(x)], 1)])
+    f = [[i, i + 1, n + 1 + i] for i in range(n)] + [[i + 1, n + 2 + i, n + 1 + i] for i in range(n)]
+    return trimesh.Trimesh(v, np.array(f), process=False)
+
+
+def _selection(score_of: dict[str, float]):
+    """Candidates on a 100-face strip, scored ``score_of`` (others as listed); support 10 of 10
+    frames but for ``g`` (2 of 10: at min_frames)."""
+    from collections import Counter
+
+    faces = {"a": np.arange(0, 20), "b": np.arange(10, 30), "d": np.arange(0, 21), "c": np.arange(30, 40),
+             "e": np.arange(40, 60), "f": np.arange(60, 80), "g": np.arange(80, 100)}
+    base = {"a": 0.80, "b": 0.79, "d": 0.795, "c": 0.56, "e": 0.54, "f": 0.40, "g": 0.90} | score_of
+    names = list(faces)
+    scores = [(base[k], 2 if k == "g" else 10, Counter(), [], 10) for k in names]
+    cfg = DecomposeConfig(min_faces=5)
+    missed: list[dict] = []
+    segs = select_segments([faces[k] for k in names], scores, _strip(100), cfg, missed)
+    return {names[s.source_candidate]: s for s in segs}, [dict(r, name=names[r["candidate"]]) for r in missed]
+
+
+def test_selections_near_their_bounds_are_listed_with_their_margins():
+    segs, missed = _selection({})
+    assert sorted(segs) == ["a", "c", "g"]  # b and d are a's duplicates; e and f score under 0.55
+    # b (faces 10-29, IoU 0.33 with a) was dropped as a's duplicate 0.01 under it: in the other
+    # order it is the segment; d (a with one face more) would give the same front either way
+    assert segs["a"].near == [{"step": "rival", "margin": 0.01, "candidate": 1}]
+    assert segs["c"].near == [{"step": "score", "margin": 0.01}]
+    assert segs["g"].near == [{"step": "support", "margin": 0.0}]
+    assert missed == [{"candidate": 4, "step": "score", "margin": -0.01, "n_faces": 20, "name": "e"}]
+    m = near_summary(list(segs.values()), missed)
+    assert m["near_segments"] == 3 and m["near_steps"] == {"score": 1, "support": 1, "overlap": 0, "rival": 1}
+    assert m["near_missed"] == 1 and m["near_missed_steps"]["score"] == 1
+
+
+def test_a_flagged_selection_flips_within_its_band_and_an_unflagged_one_does_not():
+    # what the flags claim: moving a score by less than the band decides a listed selection the
+    # other way, and leaves the others as they were
+    d = 0.75 * SCORE_BAND
+    segs, _ = _selection({"b": 0.79 + d})  # the rival now ranks first: b is the segment, a its duplicate
+    assert "b" in segs and "a" not in segs
+    segs, _ = _selection({"c": 0.56 - d, "e": 0.54 + d})
+    assert "c" not in segs and "e" in segs
+    for k, v in {"a": 0.80 + d, "f": 0.40 + d, "g": 0.90 - d, "d": 0.795 - d}.items():  # no flag on these moves
+        segs, _ = _selection({k: v})
+        assert sorted(segs) == ["a", "c", "g"], k
+
+
+def test_a_segment_whose_share_already_taken_nears_dup_overlap_is_listed():
+    from collections import Counter
+
+    # x (faces 0-19) first; y (18-37) has 2 of its 20 faces taken: 0.1, far under dup_overlap 0.3;
+    # w (14 faces, 4 of them x's) has 0.286 taken: within 0.05 of it
+    faces = [np.arange(0, 20), np.arange(18, 38), np.concatenate([np.arange(60, 70), np.arange(0, 3), np.arange(19, 20)])]
+    scores = [(0.9, 10, Counter(), [], 10), (0.8, 10, Counter(), [], 10), (0.7, 10, Counter(), [], 10)]
+    segs = select_segments(faces, scores, _strip(100), DecomposeConfig(min_faces=5))
+    assert [s.source_candidate for s in segs] == [0, 1, 2]
+    assert segs[1].near == [] and segs[2].near == [{"step": "overlap", "margin": 0.0143}]
+
+
+def test_a_segment_selected_near_a_bound_marks_its_part_low_margin(exact_capture, tmp_path):
+    import dataclasses
+
+    cap_dir, _, _ = exact_capture
+    pipeline(cap_dir, tmp_path)
+    seg_p = tmp_path / "decompose" / "segments.json"
+    js = json.loads(seg_p.read_text())
+    base = json.loads((tmp_path / "articulate" / "decisions.json").read_text())["segments"]
+    row = next(r for r in base if r.get("part") and not r["low_margin"])  # a part with a clear margin
+    seg = next(s for s in js["segments"] if s["id"] == row["segment"])
+    seg["near"] = [{"step": "score", "margin": 0.004}]
+    seg_p.write_text(json.dumps(js))
+    cap = load_capture(cap_dir)
+    for on in (True, False):
+        a = tmp_path / f"articulate_{on}"
+        a.mkdir()
+        acfg = ArticulateConfig()
+        acfg = dataclasses.replace(acfg, types=dataclasses.replace(acfg.types, near_segment=on))
+        run_articulate(acfg, cap, tmp_path / "decompose", StageRun("articulate", a, a, 0))
+        now = json.loads((a / "decisions.json").read_text())["segments"]
+        r = next(x for x in now if x["segment"] == row["segment"])
+        assert r["near_segment"] == seg["near"] and r["low_margin"] is on and r["part"] == row["part"]
+        part = next(p for p in read_parts(a / "parts.json").parts if p.id == row["part"])
+        assert bool(part.extra.get("low_margin")) is on
+        if on:  # nothing else moves: every other row as before
+            assert [x for x in now if x["segment"] != row["segment"]] == [x for x in base if x["segment"] != row["segment"]]
