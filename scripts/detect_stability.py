@@ -1,8 +1,10 @@
 #!/usr/bin/env python
-"""Do a split's parts hold when the built-in detector's probabilities move by what another
-machine's numerics could change? Compares ``scripts/bench_detect.py`` runs of the same kitchens
-whose detections were decoded from log-probabilities jittered by ``detect.builtin.logit_jitter``
-(each run with its own tag) against the run without (``--ref``), from the outputs they left
+"""Do a split's parts hold when the built-in detector's probabilities, or the mesh decompose
+reads, move by what another machine's numerics could change? Compares ``scripts/bench_detect.py``
+runs of the same kitchens whose detections were decoded from log-probabilities jittered by
+``detect.builtin.logit_jitter``, or whose mesh was jittered by ``decompose.mesh_jitter``
+(``--model capture``: the simulated detections; each run with its own tag) against the run
+without (``--ref``), from the outputs they left
 (nothing is rerun). Per tag: the kitchens whose ``parts.json`` is byte-identical to the
 reference's, the reference's parts kept (same front, same kind), retyped and lost, the parts
 added (:func:`drawer_lib.articulation.robustness.stability_counts`), how many of the parts
@@ -15,6 +17,8 @@ Also the reference's decoding decisions near their thresholds (its ``detect`` me
     python scripts/bench_detect.py --split hand_tune --detect builtin --out OUT --tag j3 --set detect.builtin.logit_jitter=1e-3
     python scripts/detect_stability.py OUT/hand_tune --ref j0 --tags j3 [--json rows.json]
     python scripts/detect_stability.py OUT/train --ref nh --ref-detect gd --tags j4   # nh: --from-tag gd
+    python scripts/bench_detect.py --split hand_tune --detect capture --out OUT --tag m6 --set decompose.mesh_jitter=1e-6
+    python scripts/detect_stability.py OUT/hand_tune --model capture --ref j0 --tags m6
 
 ``--numerics CAPTURE...`` with ``--weights``: how far the network's float32 log-probabilities
 lie from float64 on every ``--every``-th view of those captures
@@ -72,12 +76,20 @@ def compare_kitchen(root: Path, model: str, ref: str, tag: str, ref_detect: str 
     """One kitchen folder's run tagged ``tag`` against its run tagged ``ref`` (whose detections
     are those of the run tagged ``ref_detect`` when it reran articulate alone, ``--from-tag``)."""
     a, b = (ScenePaths(root / "by_detector", variant(model, t)) for t in (ref, tag))
-    ad = ScenePaths(root / "by_detector", variant(model, ref if ref_detect is None else ref_detect))
+    ad = own_detections(root, model, ref if ref_detect is None else ref_detect)
     for p in (a.parts, b.parts, ad.metrics("detect")):
         if not p.is_file():
             raise SystemExit(f"error: {p}: missing; run bench_detect with that tag first")
     return {"kitchen": root.name, "identical": a.parts.read_bytes() == b.parts.read_bytes(),
-            **stability_counts(read_parts(a.parts), read_parts(b.parts)), **changed_detections(ad, b)}
+            **stability_counts(read_parts(a.parts), read_parts(b.parts)),
+            **changed_detections(ad, own_detections(root, model, tag))}
+
+
+def own_detections(root: Path, model: str, tag: str) -> ScenePaths:
+    """The detections the run tagged ``tag`` read: its own, or the model's untagged ones when it
+    decoded none (a tag that varied decompose or articulate only, ``decompose.mesh_jitter``)."""
+    d = ScenePaths(root / "by_detector", variant(model, tag))
+    return d if d.metrics("detect").is_file() else ScenePaths(root / "by_detector", model)
 
 
 def numerics(captures: list[Path], weights: list[Path] | None, every: int) -> None:
@@ -134,7 +146,7 @@ def main() -> None:
     frames = near_frames = unrecorded = 0
     for ks in kitchens.values():
         for k in ks:
-            mp = ScenePaths(k / "by_detector", variant(a.model, a.ref_detect or a.ref)).metrics("detect")
+            mp = own_detections(k, a.model, a.ref_detect or a.ref).metrics("detect")
             if not mp.is_file():
                 raise SystemExit(f"error: {mp}: missing; run bench_detect with --tag {a.ref} first")
             m = read_json(mp)
@@ -149,7 +161,7 @@ def main() -> None:
     print(f"reference {a.ref}: {sum(near.values())} decoding decisions within 0.001 of their thresholds "
           f"({near}) in {near_frames} of {frames} frames"
           + (f"; not recorded for {unrecorded} kitchens (their detections predate the count)" if unrecorded else ""))
-    print("\n| tag | logit jitter | kitchens with identical parts | parts kept | retyped | lost | added "
+    print("\n| tag | jitter | kitchens with identical parts | parts kept | retyped | lost | added "
           "| of the moved, flagged low_margin "
           "| frames whose detections changed | their pixels changed | precision / recall |\n|---|---|---|---|---|---|---|---|---|---|---|")
     for tag in a.tags:
@@ -161,7 +173,7 @@ def main() -> None:
             sets += summ["set"]
             s = summ["by_model"][a.model]
             pr.append(f"{s['precision_pooled']:.3f} / {s['recall_pooled']:.3f}")
-        jit = [x.split("=", 1)[1] for x in sets if x.startswith("detect.builtin.logit_jitter=")]
+        jit = [x.split("=", 1)[1] for x in sets if x.split("=", 1)[0].endswith("_jitter")]  # logit_jitter, mesh_jitter
         print(f"| {tag} | {', '.join(sorted(set(jit))) or '–'} | {sum(r['identical'] for r in rows)} / {len(rows)} "
               f"| {tot['kept']} / {tot['n_ref']} | {tot['retyped']} | {tot['lost']} | {tot['added']} "
               f"| {tot['moved_flagged']} / {tot['retyped'] + tot['lost']} "

@@ -75,7 +75,7 @@ def outputs(tmp_path_factory):
                        for f in LOWER_IS_BETTER}})
     _write(sp.file("articulate", "decisions"), {"estimator": "geometric", "segments": [
         {"segment": 1, "family": "flap", "hinge": "bottom", "part": "flap_0", "runner_up": "drawer", "margin": 0.59,
-         "confidence": 0.63, "low_margin": True,
+         "confidence": 0.63, "low_margin": True, "near_segment": [{"step": "score", "margin": 0.01}],
          "handle": {"a_u": 0.49, "a_v": 0.9, "orientation": "horizontal", "n_points": 9, "source": "images"}},
         {"segment": 2, "family": "drawer", "hinge": None, "part": "drawer_0", "runner_up": "flap_bottom",
          "margin": 4.1, "confidence": 0.98, "low_margin": False, "handle": None},
@@ -120,9 +120,10 @@ def test_render_has_every_section_and_the_paper_columns(outputs):
     # the low-margin decisions, lowest first, a fixed front among them; the confident one not listed
     assert "Low-margin decisions: 3 of 4 typed fronts" in md
     lines = md.splitlines()
-    fixed = lines.index("| tiny | 3 | – (fixed) | fixed | drawer | 0.20 | 0.40 | none |")
-    assert lines[fixed + 1] == "| tiny | 5 | – (fixed) | fixed | – | 0.30 | 0.50 | none |"
-    assert lines[fixed + 2] == "| tiny | 1 | flap_0 | flap (bottom) | drawer | 0.59 | 0.63 | horizontal at (0.49, 0.90) |"
+    fixed = lines.index("| tiny | 3 | – (fixed) | fixed | drawer | 0.20 | 0.40 | none | – |")
+    assert lines[fixed + 1] == "| tiny | 5 | – (fixed) | fixed | – | 0.30 | 0.50 | none | – |"
+    assert lines[fixed + 2] == ("| tiny | 1 | flap_0 | flap (bottom) | drawer | 0.59 | 0.63 | horizontal at (0.49, 0.90) "
+                                "| the segment's selection |")
     assert "| tiny | 2 | drawer_0 |" not in md
 
 

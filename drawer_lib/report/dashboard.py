@@ -290,15 +290,32 @@ def _articulation(data: ReportData) -> Table:
 def _low_margin(data: ReportData) -> Table:
     """Every typed front whose decision margin is below ``articulate.types.low_margin``: the
     decisions a small change of the evidence may flip (docs/formats.md, decisions.json)."""
-    t = Table(["scene", "segment", "part", "decided", "runner-up", "margin (log-odds)", "confidence", "handle"], [])
+    t = Table(["scene", "segment", "part", "decided", "runner-up", "margin (log-odds)", "confidence", "handle",
+               "near a bound"], [])
     for sc in data.scenes:
         for r in sorted((r for r in sc.decisions if r.get("low_margin")), key=lambda r: r.get("margin") or 0.0):
             kind = r["family"] + (f" ({r['hinge']})" if r.get("hinge") else "")
             h = r.get("handle")
             t.rows.append([sc.name, str(r["segment"]), r.get("part") or "– (fixed)", kind, r.get("runner_up") or "–",
                            _f(r["margin"], ".2f"), _f(r.get("confidence"), ".2f"),
-                           "none" if h is None else f"{h['orientation']} at ({h['a_u']:.2f}, {h['a_v']:.2f})"])
+                           "none" if h is None else f"{h['orientation']} at ({h['a_u']:.2f}, {h['a_v']:.2f})",
+                           near_steps(r)])
     return t
+
+
+NEAR_STEPS = (("near_segment", "the segment's selection"), ("near_cuts", "a cut"),
+              ("near_handle", "a second pull"), ("glazed_near", "the glazed rules"))
+
+
+def near_steps(row: dict) -> str:
+    """The steps before the type's score that a ``decisions.json`` row was decided near a bound at
+    (docs/formats.md); "–" when only the score's margin is low.
+
+    >>> near_steps({"near_cuts": [{"cut": "gap_line"}], "pair": {"near": True}})
+    'a cut, the pair of doors'
+    """
+    out = [label for key, label in NEAR_STEPS if row.get(key)]
+    return ", ".join(out + (["the pair of doors"] if (row.get("pair") or {}).get("near") else [])) or "–"
 
 
 def _robot(data: ReportData) -> Table:
