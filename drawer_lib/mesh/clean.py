@@ -40,6 +40,24 @@ class CleanConfig:
             raise ConfigError(f"mesh.clean.decimator = {self.decimator!r}: choose one of {list(DECIMATORS)}")
 
 
+def snap_vertices(mesh: trimesh.Trimesh, grid: float) -> trimesh.Trimesh:
+    """``mesh`` with every vertex rounded to the nearest multiple of ``grid`` (m; same faces; 0:
+    unchanged). A greedy simplification orders its collapses by float costs, so the same mesh
+    moved by its last bits (another machine's reconstruction) collapses otherwise almost
+    everywhere; rounded to a grid far above those bits, both meshes are the same but for the
+    few vertices within the bits of a rounding boundary.
+
+    >>> snap_vertices(trimesh.Trimesh([[0.0004, 0.0006, 1.0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]), 1e-3).vertices[0].tolist()
+    [0.0, 0.001, 1.0]
+    """
+    if not (grid >= 0 and np.isfinite(grid)):
+        raise ValueError(f"snap_vertices: grid = {grid} must be finite and >= 0")
+    if grid == 0:
+        return mesh
+    v = np.round(np.asarray(mesh.vertices, np.float64) / grid) * grid
+    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
+
+
 def clean_mesh(mesh: trimesh.Trimesh, cfg: CleanConfig) -> tuple[trimesh.Trimesh, dict[str, int]]:
     """Cleaned copy of ``mesh`` and face counts after each step (keys ``faces_in``,
     ``faces_components``, ``faces_simplified``, ``faces_out``)."""

@@ -29,7 +29,9 @@ class DecomposeConfig:
     ``percept_stage6.py``).
 
     ``max_faces``: the mesh is decimated to this many faces first (DRAWER: 80k at full
-    resolution), cut to what the train views see, then split until no edge exceeds ``max_edge``.
+    resolution), cut to what the train views see, then split until no edge exceeds ``max_edge``;
+    ``snap`` > 0 rounds its vertices to that grid (m) before, so that a mesh another machine's
+    last bits moved is simplified the same way.
     ``erode_px``: masks are eroded before their faces are collected, unless that would remove
     half of a mask (DRAWER: 4 at 1080p). ``absorb_handles``: a handle mask (and the gap around
     it) joins the front mask around it first
@@ -89,6 +91,7 @@ class DecomposeConfig:
     planar_frac: float = 0.6
     seed: int = 42
     louvain_max_sweeps: int = 64
+    snap: float = 0.0  # m: the mesh's vertices rounded to this grid before the simplification (0: off)
     mesh_jitter: float = 0.0  # stability studies only: Gaussian noise of this sigma (m) on the mesh's vertices first
     geometric: GeometricConfig = field(default_factory=GeometricConfig)
 
@@ -99,6 +102,8 @@ class DecomposeConfig:
             raise ConfigError(f"decompose.resolutions = {self.resolutions} must be positive numbers")
         if any(not 0 < r <= 1 for r in self.component_rates):
             raise ConfigError(f"decompose.component_rates = {self.component_rates} must lie in (0, 1]")
+        if not (self.snap >= 0 and math.isfinite(self.snap)):
+            raise ConfigError(f"decompose.snap = {self.snap}: must be a finite value >= 0")
         if not (self.mesh_jitter >= 0 and math.isfinite(self.mesh_jitter)):
             raise ConfigError(f"decompose.mesh_jitter = {self.mesh_jitter}: must be a finite value >= 0")
         if self.louvain_max_sweeps < 1:

@@ -39,7 +39,7 @@ def run_decompose(cfg: DecomposeConfig, cap: Capture, mesh_path: Path, run: Stag
 
         mesh = jitter_mesh(mesh, cfg.mesh_jitter, seed=[cfg.seed, round(cfg.mesh_jitter * 1e12)])
         run.metrics["mesh_jitter"] = cfg.mesh_jitter
-    mesh = perception_mesh(mesh, cfg.max_faces, cfg.max_edge, cap, list(cap.train))
+    mesh = perception_mesh(mesh, cfg.max_faces, cfg.max_edge, cap, list(cap.train), cfg.snap)
     has_det = cap.has("detections_path")
     source = cfg.source
     if source == "auto":

@@ -13,14 +13,17 @@ from drawer_lib.io.capture import Capture
 
 
 def perception_mesh(mesh: trimesh.Trimesh, max_faces: int, max_edge: float, cap: Capture | None = None,
-                    frames: list[int] | None = None) -> trimesh.Trimesh:
+                    frames: list[int] | None = None, snap: float = 0.0) -> trimesh.Trimesh:
     """``mesh`` simplified (quadric, PyMeshLab) to at most ``max_faces`` faces, then split so that
     no edge exceeds ``max_edge`` (m; simplification leaves large triangles on flat fronts, and a
-    mask needs several faces under it), degenerate faces removed. Raises :class:`InputError` for
-    a mesh without faces."""
+    mask needs several faces under it), degenerate faces removed. ``snap`` > 0: the vertices are
+    first rounded to that grid (m; :func:`~drawer_lib.mesh.clean.snap_vertices`). Raises
+    :class:`InputError` for a mesh without faces."""
     if len(mesh.faces) == 0:
         raise InputError("decompose: the mesh has no faces")
-    m = mesh
+    from drawer_lib.mesh.clean import snap_vertices
+
+    m = mesh = snap_vertices(mesh, snap)
     if len(mesh.faces) > max_faces:
         from drawer_lib.mesh.clean import CleanConfig, clean_mesh
 

@@ -10,7 +10,7 @@ import trimesh
 
 from drawer_lib.errors import ConfigError, NonFiniteError
 from drawer_lib.geometry.camera import Intrinsics
-from drawer_lib.mesh.clean import CleanConfig, clean_mesh, fast_quadric, unit_edge_scale
+from drawer_lib.mesh.clean import CleanConfig, clean_mesh, fast_quadric, snap_vertices, unit_edge_scale
 from drawer_lib.geometry.isosurface import crossing_cubes, cube_mask, frustum_mask, grid_field_mesh, seen_crossing_mask, grid_shape, marching_cubes_mesh, refine_levels, sdf_grid
 from drawer_lib.metrics.geometry import MeshEvaluator
 from drawer_lib.sdf.io import GridSDF
@@ -301,3 +301,35 @@ def test_metrics_refuse_empty_or_unseen_predictions():
     inside = trimesh.creation.icosphere(subdivisions=2, radius=0.1)  # hidden behind the GT surface
     with pytest.raises(ValueError, match="no predicted surface"):
         ev(inside)
+
+
+def test_a_mesh_moved_by_its_last_bits_simplifies_the_same_once_snapped():
+    from scipy.spatial import cKDTree
+
+    from drawer_lib.perturb import jitter_mesh
+
+    # an irregular wavy surface of 2 m, 20k faces, simplified to 8k (PyMeshLab's greedy collapse)
+    rng = np.random.default_rng(0)
+    x, y = np.meshgrid(np.linspace(0, 2, 101), np.linspace(0, 2, 101))
+    x, y = x + rng.uniform(-0.004, 0.004, x.shape), y + rng.uniform(-0.004, 0.004, y.shape)
+    z = 0.02 * np.sin(7 * x) * np.cos(5 * y) + rng.normal(0, 0.001, x.shape)
+    i = np.arange(100)[:, None] * 101 + np.arange(100)[None, :]
+    f = np.concatenate([np.stack([i, i + 1, i + 101], -1).reshape(-1, 3),
+                        np.stack([i + 1, i + 102, i + 101], -1).reshape(-1, 3)])
+    mesh = trimesh.Trimesh(np.stack([x.ravel(), y.ravel(), z.ravel()], 1), f, process=False)
+    cfg = CleanConfig(min_component_diag=0.0, target_faces=8000, decimator="pymeshlab")
+
+    def faces_kept(q: float) -> list[float]:  # the share of the simplified faces that noise of 1e-7 m leaves in place
+        ref, _ = clean_mesh(snap_vertices(mesh, q), cfg)
+        tree = cKDTree(np.asarray(ref.triangles_center))
+        return [float((tree.query(np.asarray(clean_mesh(snap_vertices(jitter_mesh(mesh, 1e-7, seed), q), cfg)[0]
+                                             .triangles_center))[0] < 1e-6).mean()) for seed in range(3)]
+
+    raw, snapped = faces_kept(0.0), faces_kept(1e-3)
+    assert min(snapped) >= 0.95 and np.mean(raw) <= np.mean(snapped) - 0.1, (raw, snapped)
+    s = snap_vertices(mesh, 1e-3)
+    assert np.abs(s.vertices - mesh.vertices).max() <= 0.5e-3 + 1e-12
+    assert snap_vertices(s, 1e-3).vertices.tolist() == s.vertices.tolist()  # idempotent
+    assert snap_vertices(mesh, 0.0) is mesh
+    with pytest.raises(ValueError, match="grid"):
+        snap_vertices(mesh, float("nan"))
