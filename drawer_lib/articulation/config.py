@@ -51,8 +51,11 @@ class FrontsConfig:
     shared_edge_cross: float = 0.3
     repeat_inside: float = 0.8
     sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
+    sampling: str = "random"  # the mesh points articulate reads: random (one draw over the faces) or local (per face)
 
     def __post_init__(self):
+        if self.sampling not in ("random", "local"):
+            raise ConfigError(f"articulate.fronts.sampling = {self.sampling!r}: choose random or local")
         if not 0 < self.extent_percentile < 50 or not 0 < self.mask_percentile < 50:
             raise ConfigError("articulate.fronts: extent_percentile and mask_percentile must be in (0, 50)")
         if self.shared_edge_gap < 0:

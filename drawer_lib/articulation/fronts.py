@@ -9,24 +9,32 @@ from jaxtyping import Float, Int
 from drawer_lib.articulation.config import FrontsConfig
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.geometry.frames import plane_axes
-from drawer_lib.geometry.sampling import sample_triangles
+from drawer_lib.geometry.sampling import local_triangle_points, sample_triangles
 from drawer_lib.io.parts import Front
 from drawer_lib.perception.decompose import Segment
 
 MAX_SAMPLES = 400_000
 
 
-def sample_points(mesh: trimesh.Trimesh, faces: Int[np.ndarray, "K"], per_m2: float, seed: int
-                  ) -> tuple[Float[np.ndarray, "P 3"], Int[np.ndarray, "P"]]:
+def sample_points(mesh: trimesh.Trimesh, faces: Int[np.ndarray, "K"], per_m2: float, seed: int,
+                  local: bool = False) -> tuple[Float[np.ndarray, "P 3"], Int[np.ndarray, "P"]]:
     """The centroids of ``faces`` followed by area-uniform points on them (``per_m2`` per
-    square metre, at most 400k); returns (points [P, 3], face id of each point [P])."""
+    square metre, at most 400k); returns (points [P, 3], face id of each point [P]). ``local``:
+    each face's points depend on that face alone
+    (:func:`~drawer_lib.geometry.sampling.local_triangle_points`; ``seed`` unused), so another
+    simplification of the mesh moves the points of the faces it changed only; else a random
+    draw over all of them (seeded by ``seed``)."""
     tri = np.asarray(mesh.triangles)[faces]
     area = np.asarray(mesh.area_faces)[faces]
-    n = int(min(max(area.sum() * per_m2, 0), MAX_SAMPLES))
+    total = float(area.sum())
+    n = int(min(max(total * per_m2, 0), MAX_SAMPLES))
     cen = tri.mean(1)
-    if n == 0 or area.sum() <= 0:
+    if n == 0 or total <= 0:
         return cen, faces
-    pts, k = sample_triangles(tri, n, np.random.default_rng(seed), areas=area)
+    if local:
+        pts, k = local_triangle_points(tri, per_m2 * min(1.0, MAX_SAMPLES / (total * per_m2)), areas=area)
+    else:
+        pts, k = sample_triangles(tri, n, np.random.default_rng(seed), areas=area)
     return np.concatenate([cen, pts]), np.concatenate([faces, faces[k]])
 
 
@@ -42,7 +50,7 @@ def fit_front(mesh: trimesh.Trimesh, seg: Segment, cam_centers: Float[np.ndarray
               ) -> Front | None:
     """The front rectangle of a planar segment (outward normal toward most of the cameras, u
     horizontal, centre on the panel's outer face), or None for a degenerate one."""
-    P, _ = sample_points(mesh, seg.faces, cfg.sample_per_m2, seed=0)
+    P, _ = sample_points(mesh, seg.faces, cfg.sample_per_m2, seed=0, local=cfg.sampling == "local")
     if len(P) < 3:
         return None
     n = seg.normal / max(np.linalg.norm(seg.normal), 1e-12)

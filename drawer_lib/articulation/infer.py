@@ -100,7 +100,7 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
                                  near=near_cuts)
         cuts: list[dict] = []  # the evidence of the mesh's cuts
         if cfg.split.depth_steps or cfg.split.extent_steps:
-            pts, _ = sample_points(mesh, s.faces, fc.sample_per_m2, seed=0)
+            pts, _ = sample_points(mesh, s.faces, fc.sample_per_m2, seed=0, local=fc.sampling == "local")
             if cfg.split.depth_steps:
                 pieces = [q for p in pieces for q in depth_step_cuts(p, pts, tuple(cfg.joints.sliding_step),
                                                                        cfg.split.min_piece, cfg.split.depth_bin, log=cuts,
@@ -212,7 +212,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     report: list[dict] = []
     fits = segment_fronts(mesh, segs, cam_centers, cfg, masks_of, parts, report, views)
     fronts = [f for _, f, _ in fits]
-    mesh_pts, pt_face = sample_points(mesh, np.arange(len(mesh.faces)), cfg.handles.sample_per_m2, seed=1)
+    mesh_pts, pt_face = sample_points(mesh, np.arange(len(mesh.faces)), cfg.handles.sample_per_m2, seed=1,
+                                      local=cfg.fronts.sampling == "local")
     pt_normal = np.asarray(mesh.face_normals)[pt_face]
     edge = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
     rc = cfg.rectify

@@ -11,6 +11,40 @@ def triangle_areas(tri: Float[np.ndarray, "F 3 3"]) -> Float[np.ndarray, "F"]:
     return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=-1)
 
 
+R2_STEP = (0.7548776662466927, 0.5698402909980532)  # 1/g, 1/g^2, g the plastic number (Roberts' R2 sequence)
+
+
+def local_triangle_points(tri: Float[np.ndarray, "F 3 3"], density: float,
+                          areas: Float[np.ndarray, "F"] | None = None
+                          ) -> tuple[Float[np.ndarray, "n 3"], Int[np.ndarray, "n"]]:
+    """Points on each triangle that depend on that triangle alone: round(area x ``density``)
+    points (per m^2) at the first terms of Roberts' R2 low-discrepancy sequence (u_j, v_j) =
+    frac(0.5 + j (1/g, 1/g^2)), j = 1, 2, ..., folded into the triangle (u + v > 1 -> 1 - u,
+    1 - v). Unlike :func:`sample_triangles`, changing one triangle of a mesh (another
+    simplification of the same surface) changes that triangle's points only, not every
+    point's draw. Returns (points [n, 3], index of each point's triangle [n]).
+
+    >>> tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 1], [1, 0, 1], [0, 1, 1]]], float)
+    >>> p, f = local_triangle_points(tri, 6.0)
+    >>> f.tolist(), bool(np.all(p[:, 0] + p[:, 1] <= 1))
+    ([0, 0, 0, 1, 1, 1], True)
+    """
+    if not (np.isfinite(density) and density >= 0):
+        raise ValueError(f"local_triangle_points: density = {density} must be finite and >= 0")
+    tri = np.asarray(tri, np.float64)
+    area = triangle_areas(tri) if areas is None else np.asarray(areas, np.float64)
+    n = np.floor(np.where(np.isfinite(area), area, 0.0) * density + 0.5).astype(np.int64)
+    k = np.repeat(np.arange(len(tri)), n)
+    if not len(k):
+        return np.zeros((0, 3)), k
+    j = np.arange(len(k)) - np.repeat(np.cumsum(n) - n, n) + 1  # 1.. n_f within each triangle
+    u, v = (0.5 + j * R2_STEP[0]) % 1.0, (0.5 + j * R2_STEP[1]) % 1.0
+    fold = u + v > 1
+    u, v = np.where(fold, 1 - u, u), np.where(fold, 1 - v, v)
+    t = tri[k]
+    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0]), k
+
+
 def sample_triangles(tri: Float[np.ndarray, "F 3 3"], n: int, rng: np.random.Generator,
                      areas: Float[np.ndarray, "F"] | None = None
                      ) -> tuple[Float[np.ndarray, "n 3"], Int[np.ndarray, "n"]]:
