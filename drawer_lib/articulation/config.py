@@ -51,7 +51,7 @@ class FrontsConfig:
     shared_edge_cross: float = 0.3
     repeat_inside: float = 0.8
     sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
-    sampling: str = "random"  # the mesh points articulate reads: random (one draw over the faces) or local (per face)
+    sampling: str = "local"  # the mesh points articulate reads: random (one draw over the faces) or local (per face)
 
     def __post_init__(self):
         if self.sampling not in ("random", "local"):
@@ -295,7 +295,7 @@ class TypesConfig:
     min_support: int = 5
     filler_width: float | None = 0.25
     low_margin: float = 1.0
-    near_segment: bool = True
+    near_segment: bool = False
     sliding_needs_track: bool = True
     hinged_min_height: float | None = 0.2
     window_contrast: float | None = 0.15

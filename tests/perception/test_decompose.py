@@ -378,5 +378,5 @@ def test_a_segment_selected_near_a_bound_marks_its_part_low_margin(exact_capture
         assert r["near_segment"] == seg["near"] and r["low_margin"] is on and r["part"] == row["part"]
         part = next(p for p in read_parts(a / "parts.json").parts if p.id == row["part"])
         assert bool(part.extra.get("low_margin")) is on
-        if on:  # nothing else moves: every other row as before
+        if not on:  # the default: nothing else moves, every other row as before
             assert [x for x in now if x["segment"] != row["segment"]] == [x for x in base if x["segment"] != row["segment"]]
