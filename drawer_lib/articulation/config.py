@@ -260,7 +260,8 @@ class TypesConfig:
     below ``low_margin`` (log-odds) is marked ``low_margin`` in ``decisions.json`` and
     ``parts.json``, listed by the report and marked in the viewer; ``near_segment``: so is every
     front of a segment decompose selected by a margin another machine's mesh could cross (its
-    ``near`` rows in ``segments.json``). ``sliding_needs_track``: the
+    ``near`` rows in ``segments.json``; off by default: on the tuning kitchens those rows marked
+    none of the parts that a mesh moved by its last bits moved, docs/perception.md). ``sliding_needs_track``: the
     score rule types a front sliding only when it has a partner on another track or a track
     along an edge (:func:`~drawer_lib.articulation.decide.missing_evidence`).
     ``hinged_min_height`` (m): the score rule types a front shorter than this neither a

@@ -61,8 +61,9 @@ def segment_fronts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.n
     bits could cross (a gap line one cell of the rectified front from its coverage bound, a
     width one cell from ``max_width``, a depth or outline step within
     :data:`~drawer_lib.articulation.gaps.STEP_BAND` of its bounds) is listed in ``near_cuts``,
-    and the segment's fronts are marked ``low_margin``; so are those of a segment decompose selected
-    by such a margin (its ``near`` rows, copied to the info's ``near_segment``). A planar segment whose label votes are mostly no front
+    and the segment's fronts are marked ``low_margin``; with ``cfg.types.near_segment`` so are those
+    of a segment decompose selected by such a margin (its ``near`` rows, copied to the info's
+    ``near_segment`` either way). A planar segment whose label votes are mostly no front
     label (:meth:`~drawer_lib.articulation.config.TypesConfig.object_share`) is a rigid part.
     Last, coplanar neighbours share their edges (:func:`~drawer_lib.articulation.fronts.share_edges`,
     on each front's own face centres); a side that moved in by more than half of
