@@ -88,8 +88,8 @@ def compare_kitchen(root: Path, model: str, ref: str, tag: str, ref_detect: str 
 def own_detections(root: Path, model: str, tag: str) -> ScenePaths:
     """The detections the run tagged ``tag`` read: its own, or the model's untagged ones when it
     decoded none (a tag that varied decompose or articulate only, ``decompose.mesh_jitter``)."""
-    d = ScenePaths(root / "by_detector", variant(model, tag))
-    return d if d.metrics("detect").is_file() else ScenePaths(root / "by_detector", model)
+    d, u = ScenePaths(root / "by_detector", variant(model, tag)), ScenePaths(root / "by_detector", model)
+    return u if not d.metrics("detect").is_file() and u.metrics("detect").is_file() else d  # neither: the tag's is missing
 
 
 def numerics(captures: list[Path], weights: list[Path] | None, every: int) -> None:

@@ -51,7 +51,7 @@ class FrontsConfig:
     shared_edge_cross: float = 0.3
     repeat_inside: float = 0.8
     sample_per_m2: float = 40000.0  # points sampled on a segment's faces for the plane fit
-    sampling: str = "local"  # the mesh points articulate reads: random (one draw over the faces) or local (per face)
+    sampling: str = "random"  # the mesh points articulate reads: random (one draw over the faces) or local (per face)
 
     def __post_init__(self):
         if self.sampling not in ("random", "local"):

@@ -91,7 +91,7 @@ class DecomposeConfig:
     planar_frac: float = 0.6
     seed: int = 42
     louvain_max_sweeps: int = 64
-    snap: float = 0.001  # m: the mesh's vertices rounded to this grid before the simplification (0: off)
+    snap: float = 0.0  # m: the mesh's vertices rounded to this grid before the simplification (0: off)
     mesh_jitter: float = 0.0  # stability studies only: Gaussian noise of this sigma (m) on the mesh's vertices first
     geometric: GeometricConfig = field(default_factory=GeometricConfig)
 
