@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from bench_detect import variant  # the folder bench_detect writes a model's outputs to
-from drawer_lib.articulation.robustness import stability_counts
+from drawer_lib.articulation.robustness import compare_parts, stability_counts
 from drawer_lib.io.images import read_json, read_u16
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import ScenePaths
@@ -80,8 +80,9 @@ def compare_kitchen(root: Path, model: str, ref: str, tag: str, ref_detect: str 
     for p in (a.parts, b.parts, ad.metrics("detect")):
         if not p.is_file():
             raise SystemExit(f"error: {p}: missing; run bench_detect with that tag first")
-    return {"kitchen": root.name, "identical": a.parts.read_bytes() == b.parts.read_bytes(),
-            **stability_counts(read_parts(a.parts), read_parts(b.parts)),
+    pa, pb = read_parts(a.parts), read_parts(b.parts)
+    return {"split": root.parent.name, "kitchen": root.name, "identical": a.parts.read_bytes() == b.parts.read_bytes(),
+            **stability_counts(pa, pb), "moved": [r["part"] for r in compare_parts(pa, pb) if not r["kept"]],
             **changed_detections(ad, own_detections(root, model, tag))}
 
 
@@ -185,6 +186,8 @@ def main() -> None:
                 print(f"    {r['kitchen']}: kept {r['kept']} / {r['n_ref']}, retyped {r['retyped']}, lost {r['lost']}, "
                       f"added {r['added']}, frames changed {r['frames_changed']}, pixels changed {r['pixels_changed']}")
         out["tags"][tag] = {"logit_jitter": jit, "total": tot, "rows": rows, "precision_recall": pr}
+    distinct = {(str(r["split"]), r["kitchen"], p) for t in out["tags"].values() for r in t["rows"] for p in r["moved"]}
+    print(f"\ndistinct parts of the reference moved (retyped or lost) over the tags: {len(distinct)}")
     if a.json:
         a.json.write_text(json.dumps(out, indent=1))
 
