@@ -81,8 +81,9 @@ def compare_kitchen(root: Path, model: str, ref: str, tag: str, ref_detect: str 
         if not p.is_file():
             raise SystemExit(f"error: {p}: missing; run bench_detect with that tag first")
     pa, pb = read_parts(a.parts), read_parts(b.parts)
+    rows = compare_parts(pa, pb)
     return {"split": root.parent.name, "kitchen": root.name, "identical": a.parts.read_bytes() == b.parts.read_bytes(),
-            **stability_counts(pa, pb), "moved": [r["part"] for r in compare_parts(pa, pb) if not r["kept"]],
+            **stability_counts(pa, pb, rows), "moved": [r["part"] for r in rows if not r["kept"]],
             **changed_detections(ad, own_detections(root, model, tag))}
 
 

@@ -37,14 +37,15 @@ def compare_parts(ref: PartsFile, other: PartsFile) -> list[dict]:
     return rows
 
 
-def stability_counts(ref: PartsFile, other: PartsFile) -> dict:
+def stability_counts(ref: PartsFile, other: PartsFile, rows: list[dict] | None = None) -> dict:
     """How ``other``'s articulated parts differ from ``ref``'s, matched on their fronts as the
     articulation metrics match (:func:`compare_parts`): ``n_ref``, ``n_other``, ``kept`` (a part
     of ``other`` on the same front, of the same kind), ``retyped`` (on the same front, another
     kind), ``lost`` (no part of ``other`` on that front) and ``added`` (parts of ``other`` on no
     front of ``ref``); ``n_flagged`` of ``ref``'s parts are marked ``low_margin`` and
-    ``moved_flagged`` of those were not kept (what the flag says of the parts that move)."""
-    rows = compare_parts(ref, other)
+    ``moved_flagged`` of those were not kept (what the flag says of the parts that move).
+    ``rows``: :func:`compare_parts` of the two, when the caller has them already."""
+    rows = compare_parts(ref, other) if rows is None else rows
     n_other = sum(p.articulated for p in other.parts)
     matched = sum(r["now"] != "missed" for r in rows)
     flagged = {p.id for p in ref.parts if p.extra.get("low_margin")}
