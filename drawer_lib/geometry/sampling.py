@@ -12,17 +12,32 @@ def triangle_areas(tri: Float[np.ndarray, "F 3 3"]) -> Float[np.ndarray, "F"]:
 
 
 R2_STEP = (0.7548776662466927, 0.5698402909980532)  # 1/g, 1/g^2, g the plastic number (Roberts' R2 sequence)
+# three directions for a face's own phases (the fractional parts of sqrt of primes: irrational,
+# so the phases of faces on any lattice spread evenly over [0, 1) -- Weyl's equidistribution)
+_PHASE_DIRS = np.sqrt(np.array([[2.0, 3, 5], [7, 11, 13], [17, 19, 23]])) % 1.0
+PHASE_M = 0.01  # length (m) over which a face's phases run through [0, 1) once along each direction
+
+
+def face_phases(centroids: Float[np.ndarray, "F 3"]) -> Float[np.ndarray, "F 3"]:
+    """Three numbers in [0, 1) per face, continuous in its centroid (m): frac(c . a_k / ``PHASE_M``)
+    for three fixed irrational directions a_k. Moving a face by 1e-7 m moves them by about
+    1e-5; faces a centimetre apart get unrelated ones."""
+    return (np.asarray(centroids, np.float64) @ _PHASE_DIRS.T / PHASE_M) % 1.0
 
 
 def local_triangle_points(tri: Float[np.ndarray, "F 3 3"], density: float,
                           areas: Float[np.ndarray, "F"] | None = None
                           ) -> tuple[Float[np.ndarray, "n 3"], Int[np.ndarray, "n"]]:
-    """Points on each triangle that depend on that triangle alone: round(area x ``density``)
-    points (per m^2) at the first terms of Roberts' R2 low-discrepancy sequence (u_j, v_j) =
-    frac(0.5 + j (1/g, 1/g^2)), j = 1, 2, ..., folded into the triangle (u + v > 1 -> 1 - u,
+    """Points on each triangle that depend on that triangle alone, ``density`` per m^2 in
+    expectation. A triangle's three phases (:func:`face_phases` of its centroid) (d, pu, pv)
+    set its count, floor(area x ``density`` + d) (a randomised rounding: over many faces each
+    keeps its share of the points, a face of a fifth of a point gets one a fifth of the time),
+    and where they lie: the terms (u_j, v_j) = frac((pu, pv) + j (1/g, 1/g^2)), j = 0, 1, ...
+    of Roberts' R2 low-discrepancy sequence, folded into the triangle (u + v > 1 -> 1 - u,
     1 - v). Unlike :func:`sample_triangles`, changing one triangle of a mesh (another
-    simplification of the same surface) changes that triangle's points only, not every
-    point's draw. Returns (points [n, 3], index of each point's triangle [n]).
+    simplification of the same surface) changes that triangle's points only, not every point's
+    draw, and a triangle moved by float round-off keeps its count (but within ~1e-5 of a step)
+    and moves its points by as little. Returns (points [n, 3], index of each point's triangle [n]).
 
     >>> tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 1], [1, 0, 1], [0, 1, 1]]], float)
     >>> p, f = local_triangle_points(tri, 6.0)
@@ -33,12 +48,15 @@ def local_triangle_points(tri: Float[np.ndarray, "F 3 3"], density: float,
         raise ValueError(f"local_triangle_points: density = {density} must be finite and >= 0")
     tri = np.asarray(tri, np.float64)
     area = triangle_areas(tri) if areas is None else np.asarray(areas, np.float64)
-    n = np.floor(np.where(np.isfinite(area), area, 0.0) * density + 0.5).astype(np.int64)
+    cen = tri.mean(1)
+    ok = np.isfinite(area) & np.all(np.isfinite(cen), axis=1) & (area > 0)
+    ph = face_phases(np.where(ok[:, None], cen, 0.0))
+    n = np.where(ok, np.floor(np.where(ok, area, 0.0) * density + ph[:, 0]), 0).astype(np.int64)
     k = np.repeat(np.arange(len(tri)), n)
     if not len(k):
         return np.zeros((0, 3)), k
-    j = np.arange(len(k)) - np.repeat(np.cumsum(n) - n, n) + 1  # 1.. n_f within each triangle
-    u, v = (0.5 + j * R2_STEP[0]) % 1.0, (0.5 + j * R2_STEP[1]) % 1.0
+    j = np.arange(len(k)) - np.repeat(np.cumsum(n) - n, n)  # 0.. n_f - 1 within each triangle
+    u, v = (ph[k, 1] + j * R2_STEP[0]) % 1.0, (ph[k, 2] + j * R2_STEP[1]) % 1.0
     fold = u + v > 1
     u, v = np.where(fold, 1 - u, u), np.where(fold, 1 - v, v)
     t = tri[k]
