@@ -185,15 +185,43 @@ def resolve_stacked_pulls(fronts: list[Front], cands: Candidates, edge_frac: flo
     return [cands[k][choice[k]][0] if choice[k] >= 0 else None for k in range(len(fronts))], changed
 
 
-def colour_handle(front: Front, rf: "RectifiedFront", cfg: "RectifyConfig") -> np.ndarray | None:
+COLOUR_FILL = 0.5  # a colour blob is a bar or a knob when it fills this share of its box ...
+COLOUR_NEAR_FILL = 0.05  # ... and near that test within this of it
+
+
+def colour_blob_slack(long_: float, short: float, n_cells: int, box_cells: int, res: float,
+                      cfg: "RectifyConfig") -> float:
+    """How far a colour blob passes the tests of a handle (:func:`colour_handle`), in the
+    units a blob moves by: cells (``res`` m) for its sides and its count, ``COLOUR_NEAR_FILL``
+    for the share of its box it fills; the smallest over the tests, >= 0 when it passes them all.
+    A blob one cell longer, shorter or fuller could cross a test whose slack is in [-1, 1).
+
+    >>> from drawer_lib.articulation.config import RectifyConfig
+    >>> round(colour_blob_slack(0.448, 0.02, 560, 560, 0.004, RectifyConfig()), 6)  # 0.45 m at most: half a cell left
+    0.5
+    """
+    return min((long_ - cfg.colour_min_len) / res, (cfg.colour_max_len - long_) / res,
+               (cfg.colour_max_width - short) / res, float(n_cells - cfg.min_cells),
+               (n_cells / max(box_cells, 1) - COLOUR_FILL) / COLOUR_NEAR_FILL)
+
+
+def colour_handle(front: Front, rf: "RectifiedFront", cfg: "RectifyConfig",
+                  near: dict | None = None) -> np.ndarray | None:
     """A handle the detector never found, read off the rectified front's colours: the cells
     (seen in >= ``min_views`` views, at least ``colour_edge_band`` m inside the rectangle: gaps
     and neighbours bleed into its border) whose colour lies farther from the front's median
     colour than max(``colour_contrast``, ``colour_texture_k`` x the median such distance), in
     4-connected blobs; a blob is a handle when it is a bar or a knob: its longer side
-    ``colour_min_len`` .. ``colour_max_len`` m, its shorter at most ``colour_max_width`` m, and
-    it fills half of its box. The biggest such blob, as points on the front's plane [M, 3], or
-    None. Colours in [0, 1]."""
+    ``colour_min_len`` .. ``colour_max_len`` m, its shorter at most ``colour_max_width`` m, at
+    least ``min_cells`` cells, and it fills half of its box. The biggest such blob, as points on
+    the front's plane [M, 3], or None. Colours in [0, 1].
+
+    ``near``: filled with ``{"why", "a_u", "a_v"}`` when the choice had no margin, i.e. when
+    a blob one cell bigger or smaller would change it (:func:`colour_blob_slack` in [-1, 1)):
+    ``"bound"``, the chosen blob passes a test by less than that (``a_u``, ``a_v``: its place in
+    the front's unit square); ``"rival"``, another blob that passes, or fails only by that,
+    holds at least ``RUNNER_UP_NEAR`` of the chosen one's cells and lies ``RUNNER_UP_APART``
+    from it, or, with no blob chosen, fails only by that (its place)."""
     from scipy import ndimage
 
     from drawer_lib.articulation.rectify import grid_points
@@ -209,23 +237,34 @@ def colour_handle(front: Front, rf: "RectifiedFront", cfg: "RectifyConfig") -> n
     dist = np.where(inside, np.linalg.norm(np.nan_to_num(rf.rgb) - panel, axis=2), 0.0)
     thr = max(cfg.colour_contrast, cfg.colour_texture_k * float(np.median(dist[inside])))
     lab, n = ndimage.label(dist > thr)
-    best, best_n = None, 0
+    blobs = []  # (points, cells, slack) of every blob that passes or fails only by a cell
     for k, sl in enumerate(ndimage.find_objects(lab), start=1):
         if sl is None:
             continue
         cells = lab[sl] == k
         ext_v, ext_u = cells.shape[0] * rf.res, cells.shape[1] * rf.res
-        long_, short = max(ext_u, ext_v), min(ext_u, ext_v)
-        n_cells = int(cells.sum())
-        if not (cfg.colour_min_len <= long_ <= cfg.colour_max_len and short <= cfg.colour_max_width):
-            continue
-        if n_cells < max(cfg.min_cells, 0.5 * cells.size) or n_cells <= best_n:
-            continue
-        best, best_n = (sl, cells), n_cells
-    if best is None:
-        return None
-    sl, cells = best
-    return grid_points(front, uu[sl][cells], vv[sl][cells])
+        slack = colour_blob_slack(max(ext_u, ext_v), min(ext_u, ext_v), int(cells.sum()), cells.size, rf.res, cfg)
+        if slack >= -1:
+            blobs.append((grid_points(front, uu[sl][cells], vv[sl][cells]), int(cells.sum()), slack))
+    passing = [b for b in blobs if b[2] >= 0]
+    best = max(passing, key=lambda b: b[1]) if passing else None  # the first of equals
+    if near is not None:
+        record = None
+        if best is not None and best[2] < 1:
+            record = ("bound", best[0])
+        for b in blobs:
+            if record is not None or b is best:
+                continue
+            if best is None:
+                record = ("rival", b[0])
+            elif b[1] >= RUNNER_UP_NEAR * best[1]:
+                (u1, v1), (u2, v2) = unit_place(front, best[0]), unit_place(front, b[0])
+                if abs(u2 - u1) > RUNNER_UP_APART or abs(v2 - v1) > RUNNER_UP_APART:
+                    record = ("rival", b[0])
+        if record is not None:
+            a_u, a_v = unit_place(front, record[1])
+            near.update(why=record[0], a_u=round(a_u, 3), a_v=round(a_v, 3))
+    return None if best is None else best[0]
 
 
 def unit_place(front: Front, pts: Float[np.ndarray, "M 3"]) -> tuple[float, float]:

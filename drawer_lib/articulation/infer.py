@@ -219,12 +219,13 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     edge = float(np.sqrt(2 * np.median(mesh.area_faces)))  # mesh edge length: face centroids are this far apart
     rc = cfg.rectify
     image_cells, colour, rfs = None, None, None
+    colour_near: list[dict] = [{} for _ in fronts]  # fronts whose colour blob was chosen without a margin
     if rc.enabled and views and any(v.handles is not None for v in views):
         detected = [np.isin([v.stem for v in views], [st for st, _ in s.matched]) for s, _, _ in fits]
         rfs, cells, rates = rectify_fronts(fronts, views, rc, detected)
         image_cells = (cells, rates, 1.5 * rc.res, rc.min_cells)
         if rc.colour_handles and any(v.image is not None for v in views):
-            colour = [colour_handle(f, rf, rc) for f, rf in zip(fronts, rfs)]
+            colour = [colour_handle(f, rf, rc, near=cn) for f, rf, cn in zip(fronts, rfs, colour_near)]
     near_handles: dict[int, dict] = {}  # fronts whose pull was chosen over a second one nearly as heavy
     handles, gave_up = front_handles(fronts, mesh_pts, pt_normal, np.asarray(mesh.triangles_center), edge,
                                      cfg.handles, cfg.types.edge_frac,
@@ -241,6 +242,8 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     for k, ((s, fr, info), h) in enumerate(zip(fits, handles)):
         carcass = carcass_depth(fr, mesh_pts, pt_normal, cfg.joints)
         terms = {"near_handle": near_handles[k]} if k in near_handles else {}
+        if colour_near[k] and (h is None or h.source not in ("images", "masks")):  # the colours were read
+            terms["near_colour"] = colour_near[k]
         is_flanked = False
         if rfs is not None and ff.enabled and rfs[k].rgb is not None:
             border = {"lines": border_lines(fr, rfs[k], cfg.split, ff.line_slack),
@@ -282,6 +285,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         gave = gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
         # a threshold another machine could cross: a glazed front's rule, a cut, the choice of the pull
         near = (bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or k in near_handles
+                or "near_colour" in terms
                 or (cfg.types.near_segment and bool(info.get("near_segment"))))
         pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):

@@ -304,7 +304,8 @@ def _low_margin(data: ReportData) -> Table:
 
 
 NEAR_STEPS = (("near_segment", "the segment's selection"), ("near_cuts", "a cut"),
-              ("near_handle", "a second pull"), ("glazed_near", "the glazed rules"))
+              ("near_handle", "a second pull"), ("near_colour", "the pull read off its colours"),
+              ("glazed_near", "the glazed rules"))
 
 
 def near_steps(row: dict) -> str:

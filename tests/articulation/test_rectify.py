@@ -110,8 +110,8 @@ def _colour_front(bar: tuple[float, float, float, float] | None, noise: float = 
     rgb = np.empty((gv, gu, 3))
     rgb[:] = (0.45, 0.3, 0.2)
     rgb += np.random.default_rng(seed).normal(0, noise, rgb.shape)
-    if bar is not None:
-        u0, u1, v0, v1 = (int(round(x / res)) for x in bar)
+    for b in [] if bar is None else [bar] if np.isscalar(bar[0]) else bar:  # one bar or a list of them
+        u0, u1, v0, v1 = (int(round(x / res)) for x in b)
         rgb[v0:v1, u0:u1] = (0.75, 0.75, 0.78)
     seen = np.full((gv, gu), 10, np.int32)
     return RectifiedFront(-0.3, -0.2, res, seen, np.zeros_like(seen), seen.copy(), rgb)
@@ -136,6 +136,51 @@ def test_colour_handle_finds_nothing_that_is_not_a_handle(bar):
     assert colour_handle(FRONT, _colour_front(bar), RectifyConfig()) is None
 
 
+def test_a_colour_pull_chosen_with_a_margin_is_not_near():
+    from drawer_lib.articulation.handles import colour_handle
+
+    near = {}
+    assert colour_handle(FRONT, _colour_front((0.48, 0.50, 0.20, 0.32)), RectifyConfig(), near=near) is not None
+    assert near == {}
+
+
+def test_a_colour_pull_a_cell_from_a_bound_is_near():
+    from drawer_lib.articulation.handles import colour_handle
+
+    # a 0.12 m bar (30 cells) against a longest pull of 0.122 m: half a cell to spare
+    cfg = RectifyConfig(colour_max_len=0.122)
+    near = {}
+    pts = colour_handle(FRONT, _colour_front((0.48, 0.50, 0.20, 0.32)), cfg, near=near)
+    assert pts is not None and near["why"] == "bound"
+    assert near["a_u"] == pytest.approx(0.49 / 0.6, abs=0.02) and near["a_v"] == pytest.approx(0.26 / 0.4, abs=0.02)
+    # 0.118 m allowed: the bar fails by half a cell, no pull is read, and the one it nearly was is named
+    near = {}
+    assert colour_handle(FRONT, _colour_front((0.48, 0.50, 0.20, 0.32)), RectifyConfig(colour_max_len=0.118),
+                         near=near) is None
+    assert near["why"] == "rival" and near["a_u"] == pytest.approx(0.49 / 0.6, abs=0.02)
+    # two cells short: neither a pull nor near one
+    near = {}
+    assert colour_handle(FRONT, _colour_front((0.48, 0.50, 0.20, 0.32)), RectifyConfig(colour_max_len=0.11),
+                         near=near) is None
+    assert near == {}
+
+
+def test_two_colour_pulls_alike_far_apart_are_near_and_a_small_one_is_not():
+    from drawer_lib.articulation.handles import colour_handle
+
+    left, right = (0.10, 0.12, 0.20, 0.32), (0.48, 0.50, 0.20, 0.32)
+    near = {}
+    pts = colour_handle(FRONT, _colour_front([left, (0.48, 0.50, 0.20, 0.33)]), RectifyConfig(), near=near)
+    assert pts is not None and near["why"] == "rival"
+    assert near["a_u"] == pytest.approx(0.11 / 0.6, abs=0.02)  # the left one, 30 cells against 32.5
+    near = {}
+    colour_handle(FRONT, _colour_front([(0.10, 0.12, 0.20, 0.24), right]), RectifyConfig(), near=near)
+    assert near == {}  # a third of the chosen one's cells
+    near = {}
+    colour_handle(FRONT, _colour_front([(0.44, 0.46, 0.20, 0.32), right]), RectifyConfig(), near=near)
+    assert near == {}  # as big, but 0.04 m beside it: the same hinge side
+
+
 def test_sliding_needs_a_track_or_a_partner():
     from drawer_lib.articulation.config import TypesConfig
     from drawer_lib.articulation.decide import decide_by_score
@@ -150,3 +195,49 @@ def test_sliding_needs_a_track_or_a_partner():
     assert dec.family == "sliding" and terms["excluded"] == {}
     dec, _ = decide_by_score(Evidence(**ev), TypesConfig(sliding_needs_track=False), w)
     assert dec.family == "sliding"
+
+
+def _painted_views(bars: list[tuple[float, float, float, float]]) -> list[View]:
+    """``_views`` without handle masks, with images: the plane y = 0 wood-coloured, metal within
+    each bar (x0, x1, z0, z1 in m) of FRONT."""
+    import dataclasses
+
+    out = []
+    for v in _views(handle_in=set()):
+        o, d = v.camera.rays()
+        p = o + v.depth[..., None] * d  # _views' depth is the ray parameter to the plane: the point on it
+        img = np.empty(v.depth.shape + (3,), np.uint8)
+        img[:] = (115, 77, 51)
+        for x0, x1, z0, z1 in bars:
+            img[(p[..., 0] >= x0) & (p[..., 0] <= x1) & (p[..., 2] >= z0) & (p[..., 2] <= z1)] = (191, 191, 199)
+        out.append(dataclasses.replace(v, image=img))
+    return out
+
+
+@pytest.mark.parametrize("bars, near", [([(0.17, 0.19, 1.0, 1.12)], False),
+                                        ([(0.17, 0.19, 1.0, 1.12), (-0.19, -0.17, 1.0, 1.125)], True)],
+                         ids=["one pull", "two pulls alike at either edge"])
+def test_a_front_whose_colour_pull_had_no_margin_is_listed_and_marked(bars, near):
+    """Through ``infer_parts``: a front whose masks show no pull gets one off its colours; with
+    a second bar alike at the other edge the choice had no margin, and the decision lists
+    ``near_colour`` and is ``low_margin``."""
+    import trimesh
+
+    from drawer_lib.articulation.config import ArticulateConfig
+    from drawer_lib.articulation.infer import infer_parts
+    from drawer_lib.perception.decompose import Segment, face_geometry
+
+    panel = trimesh.creation.box(extents=(0.6, 0.019, 0.4)).subdivide().subdivide().subdivide()
+    panel.apply_translation((0.0, 0.0095, 1.0))
+    n = np.asarray(panel.face_normals)
+    outer = np.nonzero(n[:, 1] < -0.99)[0]
+    nrm, area, cen, frac = face_geometry(panel, outer, 30.0)
+    seg = Segment(0, outer, 1.0, 8, {"front": 8}, frac > 0.6, nrm, area, cen)
+    views = _painted_views(bars)
+    cams = np.array([v.camera.center for v in views])
+    parts, rep = infer_parts(panel, [seg], cams, ArticulateConfig(), views=views)
+    row = next(r for r in rep if r.get("segment") == 0)
+    assert row["handle"] is not None and row["handle"]["source"] == "colour"
+    assert ("near_colour" in row) == near
+    if near:
+        assert row["near_colour"]["why"] == "rival" and row["low_margin"]
