@@ -249,18 +249,10 @@ def colour_handle(front: Front, rf: "RectifiedFront", cfg: "RectifyConfig",
     passing = [b for b in blobs if b[2] >= 0]
     best = max(passing, key=lambda b: b[1]) if passing else None  # the first of equals
     if near is not None:
-        record = None
-        if best is not None and best[2] < 1:
-            record = ("bound", best[0])
-        for b in blobs:
-            if record is not None or b is best:
-                continue
-            if best is None:
-                record = ("rival", b[0])
-            elif b[1] >= RUNNER_UP_NEAR * best[1]:
-                (u1, v1), (u2, v2) = unit_place(front, best[0]), unit_place(front, b[0])
-                if abs(u2 - u1) > RUNNER_UP_APART or abs(v2 - v1) > RUNNER_UP_APART:
-                    record = ("rival", b[0])
+        rivals = [b for b in blobs if b is not best and (
+            best is None or (b[1] >= RUNNER_UP_NEAR * best[1] and elsewhere(front, best[0], b[0])))]
+        record = (("bound", best[0]) if best is not None and best[2] < 1
+                  else ("rival", rivals[0][0]) if rivals else None)
         if record is not None:
             a_u, a_v = unit_place(front, record[1])
             near.update(why=record[0], a_u=round(a_u, 3), a_v=round(a_v, 3))
@@ -277,6 +269,14 @@ def unit_place(front: Front, pts: Float[np.ndarray, "M 3"]) -> tuple[float, floa
     return a_u, a_v
 
 
+def elsewhere(front: Front, p1: Float[np.ndarray, "M 3"], p2: Float[np.ndarray, "N 3"]) -> bool:
+    """Whether two pulls' points lie at other places of ``front``: their centres (:func:`unit_place`)
+    more than :data:`RUNNER_UP_APART` of its width or height apart, so that taking one for the
+    other would read another hinge side or kind."""
+    (u1, v1), (u2, v2) = unit_place(front, p1), unit_place(front, p2)
+    return abs(u2 - u1) > RUNNER_UP_APART or abs(v2 - v1) > RUNNER_UP_APART
+
+
 def runner_up(front: Front, cands: list[tuple[np.ndarray, float]], chosen: np.ndarray | None) -> dict | None:
     """Whether the choice of ``front``'s handle had a margin: the candidate after the chosen one
     (``cands`` heaviest first; ``chosen``: the points of the one taken, as the list holds them)
@@ -290,11 +290,9 @@ def runner_up(front: Front, cands: list[tuple[np.ndarray, float]], chosen: np.nd
     if i is None or i + 1 >= len(cands) or cands[i][1] <= 0:
         return None
     (p1, w1), (p2, w2) = cands[i], cands[i + 1]
-    if w2 < RUNNER_UP_NEAR * w1:
+    if w2 < RUNNER_UP_NEAR * w1 or not elsewhere(front, p1, p2):
         return None
-    (u1, v1), (u2, v2) = unit_place(front, p1), unit_place(front, p2)
-    if abs(u2 - u1) <= RUNNER_UP_APART and abs(v2 - v1) <= RUNNER_UP_APART:
-        return None
+    u2, v2 = unit_place(front, p2)
     return {"ratio": round(w2 / w1, 3), "a_u": round(u2, 3), "a_v": round(v2, 3)}
 
 

@@ -51,7 +51,7 @@ def local_triangle_points(tri: Float[np.ndarray, "F 3 3"], density: float,
     cen = tri.mean(1)
     ok = np.isfinite(area) & np.all(np.isfinite(cen), axis=1) & (area > 0)
     ph = face_phases(np.where(ok[:, None], cen, 0.0))
-    n = np.where(ok, np.floor(np.where(ok, area, 0.0) * density + ph[:, 0]), 0).astype(np.int64)
+    n = np.floor(np.where(ok, area, 0.0) * density + ph[:, 0]).astype(np.int64)  # a bad face's phase is 0: none
     k = np.repeat(np.arange(len(tri)), n)
     if not len(k):
         return np.zeros((0, 3)), k
