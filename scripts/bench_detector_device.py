@@ -1,13 +1,14 @@
 #!/usr/bin/env python
-"""The built-in detector's fit on each ``--device``, side by side in one run: the same views,
-seed and settings (conf/detector/, ``detector.*`` overrides with ``--set``), ``--steps`` steps of
-the fit on each device, its seconds per step (the first ``--warmup`` steps not timed), the
+"""The built-in detector's fit on each ``--device`` in each ``--memory-format``, side by side in
+one run: the same views, seed and settings (conf/detector/, ``detector.*`` overrides with
+``--set``), ``--steps`` steps of the fit on each, its seconds per step (the first ``--warmup`` steps not timed), the
 first and last losses, and the projected time of the configured whole fit (``detector.steps`` +
 ``detector.average_steps``).
 
     python scripts/bench_detector_device.py --kitchens 0 1 2 3 --save-views /tmp/views.npz   # render only
     python scripts/bench_detector_device.py --views /tmp/views.npz --device cpu cuda --steps 300
     python scripts/bench_detector_device.py --kitchens 0 1 --device cpu --steps 50 --set batch=4
+    python scripts/bench_detector_device.py --views /tmp/views.npz --memory-format contiguous channels_last
 
 Views are the train split's kitchens (the generator's renders: simulated input), every
 ``detector.frame_every``-th frame, as the ``detector_fit`` stage renders them; ``--save-views``
@@ -50,6 +51,8 @@ def main() -> None:
     ap.add_argument("--views", type=Path, help="views written by --save-views (no rendering)")
     ap.add_argument("--save-views", type=Path, help="render, write the views there, stop")
     ap.add_argument("--device", nargs="+", default=["cpu"], help="devices to fit on, in this order")
+    ap.add_argument("--memory-format", nargs="+", default=None, choices=["contiguous", "channels_last"],
+                    help="the network's memory formats to fit in, each on every device (default: detector.memory_format)")
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--warmup", type=int, default=10, help="first steps not timed (allocation, kernel choice)")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="detector.* overrides (Hydra syntax)")
@@ -72,7 +75,7 @@ def main() -> None:
         samples = [to_sample(v, tc.working_size) for v in views]
     whole = tc.steps + tc.average_steps
     rows = []
-    for dev in a.device:
+    for dev, fmt in [(d, f) for d in a.device for f in (a.memory_format or [tc.memory_format])]:
         times: list[float] = []
 
         def timed(it, **kw):
@@ -81,21 +84,21 @@ def main() -> None:
                 yield x
             times.append(time.perf_counter())
 
-        c = dataclasses.replace(tc, device=dev, steps=a.steps, log_every=1, checkpoint_every=0)
+        c = dataclasses.replace(tc, device=dev, steps=a.steps, log_every=1, checkpoint_every=0, memory_format=fmt)
         try:
             _, losses = fit_detector(samples, c, seed=0, progress=timed)
         except ConfigError as e:
             raise SystemExit(f"error: {e}") from None
         dt = np.diff(times)[a.warmup:]
         s_step = float(np.median(dt))
-        rows.append({"device": device_name(dev), "threads": torch.get_num_threads(), "views": len(samples),
+        rows.append({"device": device_name(dev), "memory_format": fmt, "threads": torch.get_num_threads(), "views": len(samples),
                      "steps": a.steps, "s_per_step_median": round(s_step, 5), "s_per_step_mean": round(float(dt.mean()), 5),
                      "loss_first": round(losses[0], 4), "loss_last": round(losses[-1], 4),
                      "whole_fit_train_min": round(whole * s_step / 60, 2)})
         print(json.dumps(rows[-1]), flush=True)
-    print(f"\n{'device':32s} {'s/step':>9s} {'fit of ' + str(whole) + ' steps':>18s} {'loss first -> last':>20s}")
+    print(f"\n{'device':32s} {'memory format':>14s} {'s/step':>9s} {'fit of ' + str(whole) + ' steps':>18s} {'loss first -> last':>20s}")
     for r in rows:
-        print(f"{r['device']:32s} {r['s_per_step_median']:9.4f} {r['whole_fit_train_min']:15.1f} min "
+        print(f"{r['device']:32s} {r['memory_format']:>14s} {r['s_per_step_median']:9.4f} {r['whole_fit_train_min']:15.1f} min "
               f"{r['loss_first']:9.4f} -> {r['loss_last']:.4f}")
     if a.out:
         a.out.write_text(json.dumps({"argv": sys.argv[1:], "rows": rows}, indent=1))

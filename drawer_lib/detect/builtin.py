@@ -42,19 +42,33 @@ def _block(cin: int, cout: int) -> nn.Sequential:
                          nn.Conv2d(cout, cout, 3, padding=1, bias=False), nn.GroupNorm(4, cout), nn.ReLU(inplace=True))
 
 
+MEMORY_FORMATS = {"contiguous": torch.contiguous_format, "channels_last": torch.channels_last}
+
+
 class TinyUNet(nn.Module):
     """[B, 3, H, W] normalised RGB -> [B, len(CLASSES), H, W] logits. Widths w, 2w, 4w, 4w;
-    H and W need not be multiples of 8 (each coarser map is resized to its skip's size)."""
+    H and W need not be multiples of 8 (each coarser map is resized to its skip's size).
 
-    def __init__(self, width: int = 16, n_classes: int = len(CLASSES)):
+    ``memory_format``: how its weights and feature maps lie in memory (a key of
+    :data:`MEMORY_FORMATS`). ``channels_last`` (NHWC) lets the CPU's convolutions run about
+    1.4x faster (``scripts/bench_detector_device.py --memory-format``); the arithmetic is the
+    same but for its order, so the logits differ from ``contiguous``'s in their last bits. The
+    logits come back in that format (index them as any tensor)."""
+
+    def __init__(self, width: int = 16, n_classes: int = len(CLASSES), memory_format: str = "contiguous"):
         super().__init__()
+        if memory_format not in MEMORY_FORMATS:
+            raise ValueError(f"TinyUNet: memory_format = {memory_format!r}, expected one of {sorted(MEMORY_FORMATS)}")
         w = width
         self.width = width
+        self.memory_format = memory_format
         self.enc = nn.ModuleList([_block(3, w), _block(w, 2 * w), _block(2 * w, 4 * w), _block(4 * w, 4 * w)])
         self.dec = nn.ModuleList([_block(8 * w, 2 * w), _block(4 * w, w), _block(2 * w, w)])
         self.head = nn.Conv2d(w, n_classes, 1)
+        self.to(memory_format=MEMORY_FORMATS[memory_format])
 
     def forward(self, x: Float[Tensor, "B 3 H W"]) -> Float[Tensor, "B C H W"]:
+        x = x.contiguous(memory_format=MEMORY_FORMATS[self.memory_format])
         skips = []
         for k, e in enumerate(self.enc):
             x = e(x if k == 0 else F.max_pool2d(x, 2, ceil_mode=True))
@@ -94,16 +108,25 @@ class DetectorEnsemble(nn.Module):
 
 
 def save_detector(path: Path, model: TinyUNet | Sequence[TinyUNet], info: dict) -> None:
-    """One fit: its state dict and width. Several (an ensemble, all of one width): the first as
-    one fit's, all of them under ``members``, so the file is the single fit's when there is one."""
+    """One fit: its state dict (contiguous tensors, :func:`plain_state`), width and memory format.
+    Several (an ensemble, all of one width and format): the first as one fit's, all of them
+    under ``members``, so the file is the single fit's when there is one."""
     members = [model] if isinstance(model, TinyUNet) else list(model)
     if not members or len({m.width for m in members}) != 1:
         raise ValueError(f"save_detector: {len(members)} members of widths {sorted({m.width for m in members})}")
+    if len({m.memory_format for m in members}) != 1:
+        raise ValueError(f"save_detector: members in memory formats {sorted({m.memory_format for m in members})}")
     d = {"kind": "drawer.builtin_detector/1", "width": members[0].width, "classes": list(CLASSES),
-         "state_dict": members[0].state_dict(), "info": info}
+         "memory_format": members[0].memory_format, "state_dict": plain_state(members[0]), "info": info}
     if len(members) > 1:
-        d["members"] = [m.state_dict() for m in members]
+        d["members"] = [plain_state(m) for m in members]
     torch.save(d, path)
+
+
+def plain_state(model: nn.Module) -> dict[str, Tensor]:
+    """``model``'s state dict with every tensor contiguous: a weights file reads the same
+    whatever memory format the network ran in."""
+    return {k: v.contiguous() for k, v in model.state_dict().items()}
 
 
 def weight_files(path: Path | Sequence[Path]) -> list[Path]:
@@ -114,7 +137,9 @@ def weight_files(path: Path | Sequence[Path]) -> list[Path]:
 def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsemble, dict]:
     """The network of a weights file, or of several: one fit is a :class:`TinyUNet`; more fits,
     in one file (``members``) or across files, a :class:`DetectorEnsemble` of all of them in
-    order. ``info`` is the first file's, with ``members`` (the count) when there are several."""
+    order. ``info`` is the first file's, with ``members`` (the count) when there are several.
+    Each network runs in the memory format its file names (``contiguous`` for a file written
+    before files named one), so it computes what its fit was scored with."""
     paths = weight_files(path)
     if not paths:
         raise InputError("the built-in detector: no weights file given")
@@ -126,7 +151,7 @@ def load_detector(path: Path | Sequence[Path]) -> tuple[TinyUNet | DetectorEnsem
         if d.get("kind") != "drawer.builtin_detector/1" or list(d.get("classes", [])) != list(CLASSES):
             raise InputError(f"{p}: not the built-in detector's weights (kind {d.get('kind')!r})")
         for sd in d.get("members", [d["state_dict"]]):
-            m = TinyUNet(int(d["width"]))
+            m = TinyUNet(int(d["width"]), memory_format=d.get("memory_format", "contiguous"))
             m.load_state_dict(sd)
             members.append(m.eval())
         infos.append(dict(d.get("info", {})))

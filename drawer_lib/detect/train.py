@@ -208,7 +208,7 @@ def fit_detector(samples: list[Sample], cfg: DetectorTrainConfig, seed: int, cur
     dev = train_device(cfg)
     torch.manual_seed(seed)
     g = torch.Generator().manual_seed(seed)
-    model = TinyUNet(cfg.width).to(dev)  # initialised on the CPU from ``seed``, then moved
+    model = TinyUNet(cfg.width, memory_format=cfg.memory_format).to(dev)  # initialised on the CPU from ``seed``, then moved
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=cfg.steps, pct_start=0.1)
     weight = class_weights(samples).to(dev)
@@ -332,7 +332,7 @@ def average_fit(model: TinyUNet, samples: list[Sample], cfg: DetectorTrainConfig
     with cuda_numerics(dev):
         _run_steps(start, cfg.average_steps, take_step, save if resume is not None else None, cfg.checkpoint_every,
                    progress, f"average fit {seed}", resume)
-    out = TinyUNet(model.width)
+    out = TinyUNet(model.width, memory_format=model.memory_format)
     out.load_state_dict(avg.module.state_dict())
     return out.eval()
 

@@ -356,6 +356,55 @@ def test_fit_learns_rectangles_on_a_flat_background():
     assert pixel_accuracy(model, samples) > max(0.9, base)
 
 
+def test_a_channels_last_network_computes_the_same_logits_and_its_file_reads_alike(tmp_path):
+    """``memory_format: channels_last``: the logits of the same weights as the contiguous
+    network's to float32 rounding, its file holds plain (contiguous) tensors and its format, and
+    loads into a network of that format that gives the probabilities it was saved with, bit for
+    bit; a file without the key loads contiguous; formats are checked."""
+    torch.manual_seed(0)
+    a = TinyUNet(8).eval()
+    b = TinyUNet(8, memory_format="channels_last").eval()
+    b.load_state_dict(a.state_dict())
+    conv = b.enc[0][0].weight
+    assert conv.is_contiguous(memory_format=torch.channels_last) and not conv.is_contiguous()
+    x = torch.randn(2, 3, 37, 53)
+    with torch.no_grad():
+        la, lb = a(x), b(x)
+    np.testing.assert_allclose(lb.numpy(), la.numpy(), atol=1e-5)
+    save_detector(tmp_path / "cl.pt", b, {"note": 1})
+    d = torch.load(tmp_path / "cl.pt", weights_only=True)
+    assert d["memory_format"] == "channels_last" and all(v.is_contiguous() for v in d["state_dict"].values())
+    m, _ = load_detector(tmp_path / "cl.pt")
+    assert m.memory_format == "channels_last" and m.enc[0][0].weight.is_contiguous(memory_format=torch.channels_last)
+    rgb = np.random.default_rng(0).integers(0, 256, (30, 41, 3), dtype=np.uint8)
+    assert np.array_equal(class_probs(m, rgb, 41), class_probs(b, rgb, 41))
+    del d["memory_format"]
+    torch.save(d, tmp_path / "old.pt")
+    assert load_detector(tmp_path / "old.pt")[0].memory_format == "contiguous"
+    with pytest.raises(ValueError, match="memory formats"):
+        save_detector(tmp_path / "mixed.pt", [a, b], {})
+    with pytest.raises(ValueError, match="memory_format"):
+        TinyUNet(8, memory_format="nhwc")
+    with pytest.raises(ConfigError, match="detector.memory_format"):
+        DetectorTrainConfig(memory_format="nhwc")
+
+
+def test_a_fit_in_either_memory_format_starts_alike_and_learns():
+    """The fit in ``channels_last`` and in ``contiguous``: the same initial weights and crops
+    (the first loss agrees to float32 rounding), both learn the rectangles, and the fitted
+    network keeps the format it was fitted in, as does its weight average."""
+    samples = _rectangles()
+    cfg = DetectorTrainConfig(width=8, steps=150, batch=4, crop=32, lr=1e-2, log_every=1)
+    fits = {f: fit_detector(samples, dataclasses.replace(cfg, memory_format=f), seed=0)
+            for f in ("contiguous", "channels_last")}
+    (ma, la), (mb, lb) = fits["contiguous"], fits["channels_last"]
+    np.testing.assert_allclose(lb[0], la[0], rtol=1e-5)
+    assert mb.memory_format == "channels_last" and ma.memory_format == "contiguous"
+    assert min(pixel_accuracy(ma, samples), pixel_accuracy(mb, samples)) > 0.9
+    avg = average_fit(mb, samples, dataclasses.replace(cfg, average_steps=12, average_warmup=4), seed=3)
+    assert avg.memory_format == "channels_last" and pixel_accuracy(avg, samples) > 0.9
+
+
 @pytest.mark.gpu
 def test_a_fit_on_cuda_starts_sees_and_ends_as_on_the_cpu(tmp_path):
     """``detector.device: cuda``: the same initial weights and crops as the CPU (its first
