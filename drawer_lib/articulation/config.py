@@ -137,7 +137,9 @@ class RectifyConfig:
     ``max_angle_deg`` and the ray-cast surface is not nearer than the cell by more than
     ``occlusion_tol`` (m, + 2 % of the depth); the handle map samples ``handle_offset`` (m) in
     front of the plane. A handle cell is seen in at least ``min_views`` views and covered in at
-    least ``min_rate`` of them; a handle is at least ``min_cells`` such cells linked at 1.5 cells.
+    least ``min_rate`` of them; a handle is at least ``min_cells`` such cells linked at
+    ``handle_link`` cells (single linkage; 1.5 links neighbours and diagonals only, 2.5 bridges
+    one missing cell).
     ``colour_handles``: a front whose masks show no handle takes one read off its rectified
     colours (:func:`~drawer_lib.articulation.handles.colour_handle`: cells ``colour_edge_band``
     m inside the rectangle farther from the front's median colour than max(``colour_contrast``,
@@ -153,6 +155,7 @@ class RectifyConfig:
     min_views: int = 3
     min_rate: float = 0.3
     min_cells: int = 8
+    handle_link: float = 1.5
     colour_handles: bool = True
     colour_edge_band: float = 0.015
     colour_contrast: float = 0.12
@@ -170,6 +173,8 @@ class RectifyConfig:
             raise ConfigError(f"articulate.rectify.max_angle_deg = {self.max_angle_deg} must be in (0, 90)")
         if not 0 < self.min_rate <= 1 or self.min_views < 1 or self.min_cells < 1:
             raise ConfigError("articulate.rectify: need 0 < min_rate <= 1, min_views >= 1, min_cells >= 1")
+        if not 1.0 <= self.handle_link <= 5.0:
+            raise ConfigError(f"articulate.rectify.handle_link = {self.handle_link} must be in [1, 5] cells")
 
 
 @dataclass(frozen=True)

@@ -223,7 +223,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
     if rc.enabled and views and any(v.handles is not None for v in views):
         detected = [np.isin([v.stem for v in views], [st for st, _ in s.matched]) for s, _, _ in fits]
         rfs, cells, rates = rectify_fronts(fronts, views, rc, detected)
-        image_cells = (cells, rates, 1.5 * rc.res, rc.min_cells)
+        image_cells = (cells, rates, rc.handle_link * rc.res, rc.min_cells)
         if rc.colour_handles and any(v.image is not None for v in views):
             colour = [colour_handle(f, rf, rc, near=cn) for f, rf, cn in zip(fronts, rfs, colour_near)]
     near_handles: dict[int, dict] = {}  # fronts whose pull was chosen over a second one nearly as heavy
