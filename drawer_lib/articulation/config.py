@@ -139,7 +139,11 @@ class RectifyConfig:
     front of the plane. A handle cell is seen in at least ``min_views`` views and covered in at
     least ``min_rate`` of them; a handle is at least ``min_cells`` such cells linked at
     ``handle_link`` cells (single linkage; 1.5 links neighbours and diagonals only, 2.5 bridges
-    one missing cell).
+    one missing cell). ``grid_anchor``: how the grid sits on the front
+    (:func:`~drawer_lib.articulation.rectify.front_grid`): ``size``, the cells that cover it,
+    centred (a size crossing a multiple of ``res`` moves them all by half a cell), or
+    ``centre``, cells at whole multiples of ``res`` from its centre (a size change adds or drops
+    border cells only).
     ``colour_handles``: a front whose masks show no handle takes one read off its rectified
     colours (:func:`~drawer_lib.articulation.handles.colour_handle`: cells ``colour_edge_band``
     m inside the rectangle farther from the front's median colour than max(``colour_contrast``,
@@ -156,6 +160,7 @@ class RectifyConfig:
     min_rate: float = 0.3
     min_cells: int = 8
     handle_link: float = 1.5
+    grid_anchor: str = "size"
     colour_handles: bool = True
     colour_edge_band: float = 0.015
     colour_contrast: float = 0.12
@@ -175,6 +180,8 @@ class RectifyConfig:
             raise ConfigError("articulate.rectify: need 0 < min_rate <= 1, min_views >= 1, min_cells >= 1")
         if not 1.0 <= self.handle_link <= 5.0:
             raise ConfigError(f"articulate.rectify.handle_link = {self.handle_link} must be in [1, 5] cells")
+        if self.grid_anchor not in ("size", "centre"):
+            raise ConfigError(f"articulate.rectify.grid_anchor = {self.grid_anchor!r} must be size or centre")
 
 
 @dataclass(frozen=True)

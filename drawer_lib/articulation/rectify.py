@@ -110,9 +110,20 @@ def window_contrast(front: Front, rf: RectifiedFront, min_cells: int = 20) -> fl
     return float(abs(np.median(g[ring]) - np.median(g[inner])))
 
 
-def front_grid(front: Front, res: float, margin: float) -> tuple[float, float, int, int]:
-    """(u0, v0, Gu, Gv): the grid covering the rectangle grown by ``margin`` on every side."""
+def front_grid(front: Front, res: float, margin: float, anchor: str = "size") -> tuple[float, float, int, int]:
+    """(u0, v0, Gu, Gv): the grid covering the rectangle grown by ``margin`` on every side.
+    ``anchor``: ``size``, as many cells as cover it, centred on the front's centre (a size
+    that crosses a multiple of ``res`` changes the count's parity and moves every cell by half
+    a cell); ``centre``, cells centred at whole multiples of ``res`` from the front's centre (an
+    odd count, at least as many), so a change of the size adds or drops cells at the border
+    and never moves the others."""
     w, h = front.size
+    if anchor == "centre":
+        ku = max(0, int(np.ceil((w / 2 + margin) / res - 0.5)))
+        kv = max(0, int(np.ceil((h / 2 + margin) / res - 0.5)))
+        return -(ku + 0.5) * res, -(kv + 0.5) * res, 2 * ku + 1, 2 * kv + 1
+    if anchor != "size":
+        raise ValueError(f"front_grid: anchor = {anchor!r}, expected 'size' or 'centre'")
     gu = max(1, int(np.ceil((w + 2 * margin) / res)))
     gv = max(1, int(np.ceil((h + 2 * margin) / res)))
     return -gu * res / 2, -gv * res / 2, gu, gv
@@ -144,7 +155,7 @@ def rectify_front(front: Front, views: list[View], cfg: RectifyConfig, detected:
     the views whose detections hold the front; when at least ``cfg.min_views`` of them, only
     they count for the handle map (a detector that misses a front in most views misses its
     handle there too: a front seen in a quarter of the views keeps its handle)."""
-    u0, v0, gu, gv = front_grid(front, cfg.res, cfg.margin)
+    u0, v0, gu, gv = front_grid(front, cfg.res, cfg.margin, cfg.grid_anchor)
     uu, vv = np.meshgrid(u0 + (np.arange(gu) + 0.5) * cfg.res, v0 + (np.arange(gv) + 0.5) * cfg.res)
     plane = grid_points(front, uu, vv).reshape(-1, 3)
     proud = grid_points(front, uu, vv, cfg.handle_offset).reshape(-1, 3)

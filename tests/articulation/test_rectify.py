@@ -55,6 +55,38 @@ def test_handle_found_where_it_is():
     assert h.orientation == "vertical"
 
 
+@pytest.mark.parametrize("w", [0.001, 0.3999, 0.424, 0.48399, 1.7])
+def test_a_centre_anchored_grid_covers_the_front_with_cells_at_whole_steps_from_its_centre(w):
+    """``grid_anchor: centre``: an odd count of cells centred at whole multiples of ``res`` from
+    the front's centre, covering the rectangle and its margin with less than a cell to spare."""
+    res, margin = 0.004, 0.03
+    f = Front((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (w, 0.37 * w + 0.01))
+    u0, v0, gu, gv = front_grid(f, res, margin, "centre")
+    for lo, n, half in ((u0, gu, w / 2 + margin), (v0, gv, f.size[1] / 2 + margin)):
+        centres = lo + (np.arange(n) + 0.5) * res
+        assert n % 2 == 1 and np.allclose(centres / res, np.round(centres / res), atol=1e-9)
+        assert -lo >= half - 1e-12 and -lo - half < res
+    with pytest.raises(ValueError, match="anchor"):
+        front_grid(f, res, margin, "corner")
+
+
+def test_a_width_change_across_a_cell_moves_the_handle_cells_only_with_a_size_anchored_grid():
+    """A front whose width (+ margins) crosses a multiple of the cell by 0.02 mm, as another
+    machine's mesh moves it: with ``grid_anchor: size`` the cell count's parity flips and every
+    handle cell moves by half a cell; with ``centre`` the handle's cells stay where they were."""
+    w = 4 * 0.004 * 30 - 2 * 0.03  # 0.42 m: w + 2 margin is 120 cells
+    pts = {}
+    for anchor in ("size", "centre"):
+        cfg = RectifyConfig(grid_anchor=anchor)
+        for dw in (-2e-5, 2e-5):
+            f = Front(FRONT.center, FRONT.normal, FRONT.u, (w + dw, FRONT.size[1]))
+            _, p, _ = rectify_fronts([f], _views(), cfg)
+            pts[anchor, dw] = p[np.lexsort(p.T)]
+    assert len(pts["centre", -2e-5]) > 20 and np.array_equal(pts["centre", -2e-5], pts["centre", 2e-5])
+    a, b = pts["size", -2e-5], pts["size", 2e-5]
+    assert len(a) != len(b) or not np.allclose(a, b, atol=1e-3)
+
+
 def test_occluded_views_do_not_count():
     cfg = RectifyConfig()
     rf = rectify_front(FRONT, _views(occluder_depth=0.5), cfg)  # a surface 0.5 m from every camera
@@ -80,7 +112,8 @@ def test_no_handle_masks_no_points():
     assert pts.shape == (0, 3) and rates.shape == (0,)
 
 
-@pytest.mark.parametrize("bad", [{"res": 0.0}, {"max_angle_deg": 90.0}, {"min_rate": 0.0}, {"margin": -0.01}])
+@pytest.mark.parametrize("bad", [{"res": 0.0}, {"max_angle_deg": 90.0}, {"min_rate": 0.0}, {"margin": -0.01},
+                                 {"handle_link": 0.5}, {"grid_anchor": "corner"}])
 def test_config_checked(bad):
     with pytest.raises(ConfigError, match="articulate.rectify"):
         RectifyConfig(**bad)
