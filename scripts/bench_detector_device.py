@@ -1,9 +1,9 @@
 #!/usr/bin/env python
 """The built-in detector's fit on each ``--device`` in each ``--memory-format``, side by side in
 one run: the same views, seed and settings (conf/detector/, ``detector.*`` overrides with
-``--set``), ``--steps`` steps of the fit on each, its seconds per step (the first ``--warmup`` steps not timed), the
-first and last losses, and the projected time of the configured whole fit (``detector.steps`` +
-``detector.average_steps``).
+``--set``), ``--steps`` steps of the fit on each, its seconds per step (the first ``--warmup``
+steps not timed), the first and last losses, and the projected time of the configured whole
+fit (``detector.steps`` + ``detector.average_steps``).
 
     python scripts/bench_detector_device.py --kitchens 0 1 2 3 --save-views /tmp/views.npz   # render only
     python scripts/bench_detector_device.py --views /tmp/views.npz --device cpu cuda --steps 300
@@ -29,6 +29,7 @@ import torch
 
 from drawer_lib.config.compose import compose_config
 from drawer_lib.devices import device_name
+from drawer_lib.detect.builtin import MEMORY_FORMATS
 from drawer_lib.detect.data import View
 from drawer_lib.detect.train import Sample, fit_views, fit_detector, stage_inputs, to_sample
 from drawer_lib.errors import ConfigError
@@ -51,7 +52,7 @@ def main() -> None:
     ap.add_argument("--views", type=Path, help="views written by --save-views (no rendering)")
     ap.add_argument("--save-views", type=Path, help="render, write the views there, stop")
     ap.add_argument("--device", nargs="+", default=["cpu"], help="devices to fit on, in this order")
-    ap.add_argument("--memory-format", nargs="+", default=None, choices=["contiguous", "channels_last"],
+    ap.add_argument("--memory-format", nargs="+", default=None, choices=sorted(MEMORY_FORMATS),
                     help="the network's memory formats to fit in, each on every device (default: detector.memory_format)")
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--warmup", type=int, default=10, help="first steps not timed (allocation, kernel choice)")
