@@ -8,6 +8,7 @@ axis-aligned bounds).
 """
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import trimesh
@@ -29,7 +30,7 @@ from drawer_lib.articulation.fronts import (
 from drawer_lib.articulation.handles import colour_handle, front_handles
 from drawer_lib.articulation.interaction import Obstacles, blocked_hypotheses, front_coords, interaction_evidence
 from drawer_lib.articulation.joints import make_part, slide_side, sliding_partners
-from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_extent, rail_run
+from drawer_lib.articulation.probes import carcass_depth, flush_sides, rail_extent, rail_extents_moved, rail_run
 from drawer_lib.articulation.gaps import border_lines, depth_step_cuts, extent_step_cuts, split_front
 from drawer_lib.articulation.rectify import View, rectify_front, rectify_fronts, window_contrast
 from drawer_lib.articulation.scoring import Evidence
@@ -276,6 +277,9 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                           labels=s.labels, support=s.support, flanked=is_flanked, window=window)
             dec, score_terms = decide_by_score(ev, cfg.types, weights, blocked)
             terms |= score_terms
+            turned = near_track(ev, dec, fr, mesh_pts, pt_normal, cfg, weights, blocked)
+            if turned is not None:
+                terms["near_track"] = turned
         elif k in partner:
             dec = Decision("sliding", reason="a neighbouring front on another track (depth step)")
         else:
@@ -285,7 +289,7 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
         gave = gave_reasons(gave_up, k, [s.id for s, _, _ in fits])
         # a threshold another machine could cross: a glazed front's rule, a cut, the choice of the pull
         near = (bool(terms.get("glazed_near")) or bool(info.get("near_cuts")) or k in near_handles
-                or "near_colour" in terms
+                or "near_colour" in terms or "near_track" in terms
                 or (cfg.types.near_segment and bool(info.get("near_segment"))))
         pair_front = (fronts[partner[k][0]], partner[k][1]) if k in partner else None
         for pfr, pdec, ph, pair_row in door_pair(fr, dec, h, pair):
@@ -321,6 +325,27 @@ def infer_parts(mesh: trimesh.Trimesh, segs: list[Segment], cam_centers: np.ndar
                                    carcass if pdec.family == "drawer" else None, pair_front, side))
             row["part"] = pid
     return parts, report
+
+
+def near_track(ev: Evidence, dec: Decision, front: Front, points: np.ndarray, normals: np.ndarray,
+               cfg: ArticulateConfig, weights: dict[str, dict[str, float]], blocked: dict[str, str] | None
+               ) -> dict | None:
+    """Whether the track test could turn the score rule's decision ``dec`` on another machine:
+    the track's length on the front moved as that machine's mesh could move it
+    (:func:`~drawer_lib.articulation.probes.rail_extents_moved`), each one that differs from
+    ``ev.rail`` put into the rule with the rest of the evidence as it is. The first that gives
+    another kind or hinge side: ``{"rail", "other", "as"}`` (the front's length, that one, and
+    what the front would have been); None when none does."""
+    seen = {round(ev.rail, 6)}
+    for other in rail_extents_moved(front, points, normals, inside=cfg.joints.rail_inside):
+        if round(other, 6) in seen:
+            continue
+        seen.add(round(other, 6))
+        alt, _ = decide_by_score(replace(ev, rail=other), cfg.types, weights, blocked)
+        if (alt.family, alt.hinge) != (dec.family, dec.hinge):
+            return {"rail": round(ev.rail, 4), "other": round(other, 4),
+                    "as": alt.family + (f"_{alt.hinge}" if alt.hinge else "")}
+    return None
 
 
 def door_pair(front: Front, dec: Decision, h: Handle | None, pair: tuple[str, bool] | None

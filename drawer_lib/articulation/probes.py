@@ -4,6 +4,8 @@ neighbouring front lies behind it, and the track a sliding door runs on. Lengths
 a front's frame is (``u``, ``v`` = normal x u, ``normal``) about the centre of its outer face
 (:class:`~drawer_lib.io.parts.Front`)."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from drawer_lib.articulation.config import JointsConfig
@@ -45,6 +47,30 @@ def rail_extent(front, points: np.ndarray, normals: np.ndarray, band: float = 0.
     """The track's length along the front in units of its width (0: none; :func:`rail_run`)."""
     run = rail_run(front, points, normals, band, inside)
     return 0.0 if run is None else float((run[1] - run[0]) / max(front.size[0], 1e-6))
+
+
+TRACK_PLANE = 0.002  # m: how far another machine's mesh could move a front's plane (near_track)
+TRACK_EDGE = 0.005  # m: and each side of its rectangle
+
+
+def rail_extents_moved(front: Front, points: np.ndarray, normals: np.ndarray, inside: float = 0.0,
+                       plane: float = TRACK_PLANE, edge: float = TRACK_EDGE) -> list[float]:
+    """:func:`rail_extent` of the front moved as another machine's mesh could move it: its
+    plane ``plane`` out and in along its normal, its width and its height each ``2 edge``
+    wider and narrower (every side ``edge`` out or in); six lengths, in units of each moved
+    front's width. ``points`` [P, 3], ``normals`` [P, 3] as for :func:`rail_run`."""
+    c, n = np.asarray(front.center, np.float64), np.asarray(front.normal, np.float64)
+    w, h = front.size
+    # the points any of the moved fronts can read: within twice the widest width along u and a
+    # band beyond the tallest height along v (rail_run reads no further)
+    rel = np.asarray(points) - c
+    keep = ((np.abs(rel @ np.asarray(front.u)) < w + 2 * edge + 1e-9)
+            & (np.abs(rel @ front.v) < h / 2 + edge + 0.06 + 1e-9))
+    pts, nrm = np.asarray(points)[keep], np.asarray(normals)[keep]
+    moved = [replace(front, center=tuple(c + s * plane * n)) for s in (1.0, -1.0)]
+    moved += [replace(front, size=(w + s * 2 * edge, h)) for s in (1.0, -1.0)]
+    moved += [replace(front, size=(w, h + s * 2 * edge)) for s in (1.0, -1.0)]
+    return [rail_extent(f, pts, nrm, inside=inside) for f in moved]
 
 
 def rail_run(front, points: np.ndarray, normals: np.ndarray, band: float = 0.06, inside: float = 0.0
