@@ -14,7 +14,7 @@ import yaml
 
 from drawer_lib.articulation.config import ArticulateConfig, JointsConfig, TypesConfig
 from drawer_lib.articulation.decide import decide_by_score
-from drawer_lib.articulation.probes import rail_extent, rail_run
+from drawer_lib.articulation.probes import TRACK_EDGE, TRACK_PLANE, rail_extent, rail_extents_moved, rail_run
 from drawer_lib.articulation.scoring import Evidence, door_features, features, score
 from drawer_lib.articulation.vocab import COMMON, DOOR_ONLY, HYPOTHESES, WEIGHT_SETS, Handle, prior_weights
 from drawer_lib.bench.cases import CASES, Scene, run_cases
@@ -209,6 +209,45 @@ def test_a_track_inside_the_fronts_edge_is_found_when_looked_for_there():
     assert rail_extent(f, shaker, np.tile([0, -1.0, 0], (6000, 1)), inside=0.03) == 0.0
     with pytest.raises(ConfigError, match="rail_inside"):
         JointsConfig(rail_inside=-0.01)
+
+
+def test_the_moved_fronts_tracks_are_those_of_the_moved_fronts():
+    """rail_extents_moved reads only the points near the front; each of its six lengths is
+    rail_extent of the front moved (the slow reference: every point)."""
+    f = Front((0.25, -0.6, 0.5), (0, -1.0, 0), (1.0, 0, 0), (0.5, 0.6))
+    g = np.random.default_rng(2)
+    # a rail 5 mm proud along the top edge, a counter and clutter all around
+    rail = np.stack([g.uniform(-0.25, 0.75, 600), np.full(600, -0.605), g.uniform(0.805, 0.84, 600)], -1)
+    clutter = g.uniform([-2.0, -1.0, -0.5], [2.5, 0.2, 2.0], (3000, 3))
+    pts = np.concatenate([rail, clutter])
+    nrm = np.concatenate([np.tile([0, -1.0, 0], (600, 1)), g.normal(size=(3000, 3))])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    got = rail_extents_moved(f, pts, nrm, inside=0.03)
+    c, n = np.array(f.center), np.array(f.normal)
+    moved = [dataclasses.replace(f, center=tuple(c + s * TRACK_PLANE * n)) for s in (1.0, -1.0)]
+    moved += [dataclasses.replace(f, size=(0.5 + s * 2 * TRACK_EDGE, 0.6)) for s in (1.0, -1.0)]
+    moved += [dataclasses.replace(f, size=(0.5, 0.6 + s * 2 * TRACK_EDGE)) for s in (1.0, -1.0)]
+    assert got == [rail_extent(m, pts, nrm, inside=0.03) for m in moved]
+    # 5 mm proud: the front's own test finds the track, its plane 2 mm out does not (3 mm proud)
+    assert rail_extent(f, pts, nrm, inside=0.03) == pytest.approx(2.0, abs=0.1)
+    assert got[0] == 0.0 and got[1] == pytest.approx(2.0, abs=0.1)
+
+
+@pytest.mark.parametrize("proud, near", [(0.005, True), (0.012, False)])
+def test_a_track_near_its_bound_is_reported_near_track(proud, near):
+    """A single sliding door whose track stands 5 mm proud (1 mm over the test's 4 mm) is
+    typed sliding, and is listed near_track and low_margin: its plane 2 mm out loses the track
+    and the door. 12 mm proud, nothing another machine's mesh does turns it."""
+    s = Scene()
+    s.static([0.0, -0.35, 1.45], [0.018, 0.0, 2.15]).static([0.882, -0.35, 1.45], [0.9, 0.0, 2.15])
+    s.static([0.0, -0.35, 1.45], [0.9, 0.0, 1.468]).static([0.0, -0.35, 1.78], [0.9, -0.008, 1.798])
+    s.static([0.0, -0.39 - proud, 2.12], [0.9, -0.35, 2.15])  # the rail, the cabinet's full width
+    (p,), rep, _ = s.front(0.0015, 0.46, 1.4515, 2.117, -0.39, (0.045, 1.78, "v", 0.13)).run(CFG, PRIOR)
+    row = next(r for r in rep if r.get("part") == p.id)
+    assert p.extra["family"] == "sliding" and row["features"]["rail"] > 0.9
+    assert ("near_track" in row) is near and row["low_margin"] is near and p.extra["low_margin"] is near
+    if near:
+        assert row["near_track"]["other"] == 0.0 and row["near_track"]["as"] != "sliding"
 
 
 def test_weights_are_checked():
