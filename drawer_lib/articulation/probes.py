@@ -61,8 +61,9 @@ def rail_extents_moved(front: Front, points: np.ndarray, normals: np.ndarray, in
     front's width. ``points`` [P, 3], ``normals`` [P, 3] as for :func:`rail_run`."""
     c, n = np.asarray(front.center, np.float64), np.asarray(front.normal, np.float64)
     w, h = front.size
-    # the points any of the moved fronts can read: within twice the widest width along u and a
-    # band beyond the tallest height along v (rail_run reads no further)
+    # the points any of the moved fronts can read: within the widest one's width of the centre
+    # along u, and within half the tallest one's height and the 6 cm band beyond it along v
+    # (rail_run reads no further)
     rel = np.asarray(points) - c
     keep = ((np.abs(rel @ np.asarray(front.u)) < w + 2 * edge + 1e-9)
             & (np.abs(rel @ front.v) < h / 2 + edge + 0.06 + 1e-9))
