@@ -106,13 +106,20 @@ def oven_door_top_bar(cfg, w) -> bool:
             and np.allclose(oven.axis.origin, [0.3, -0.6, 0.243], atol=0.02))
 
 
-def sliding_without_partner(cfg, w) -> bool:
-    """A sliding door on its own track in front of a wall cabinet slides over the open shelf."""
+def single_sliding_door(rail_proud: float = 0.012) -> Scene:
+    """A wall cabinet 0.9 m wide with a shelf, its left half closed by one sliding door (outer
+    face at y = -0.39, a vertical pull at its left edge) on a track along its top that stands
+    ``rail_proud`` (m) proud of the door."""
     s = Scene()
     s.static([0.0, -0.35, 1.45], [0.018, 0.0, 2.15]).static([0.882, -0.35, 1.45], [0.9, 0.0, 2.15])
     s.static([0.0, -0.35, 1.45], [0.9, 0.0, 1.468]).static([0.0, -0.35, 1.78], [0.9, -0.008, 1.798])
-    s.static([0.0, -0.402, 2.12], [0.9, -0.35, 2.15])  # the rail, the cabinet's full width
-    (p,), _, _ = s.front(0.0015, 0.46, 1.4515, 2.117, -0.39, (0.045, 1.78, "v", 0.13)).run(cfg, w)
+    s.static([0.0, -0.39 - rail_proud, 2.12], [0.9, -0.35, 2.15])  # the rail, the cabinet's full width
+    return s.front(0.0015, 0.46, 1.4515, 2.117, -0.39, (0.045, 1.78, "v", 0.13))
+
+
+def sliding_without_partner(cfg, w) -> bool:
+    """A sliding door on its own track in front of a wall cabinet slides over the open shelf."""
+    (p,), _, _ = single_sliding_door().run(cfg, w)
     return _family(p, "sliding") and np.allclose(p.axis.direction, [1, 0, 0], atol=1e-3) and 0.3 < p.limits[1] < 0.5
 
 

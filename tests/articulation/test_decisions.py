@@ -17,7 +17,7 @@ from drawer_lib.articulation.decide import decide_by_score
 from drawer_lib.articulation.probes import TRACK_EDGE, TRACK_PLANE, rail_extent, rail_extents_moved, rail_run
 from drawer_lib.articulation.scoring import Evidence, door_features, features, score
 from drawer_lib.articulation.vocab import COMMON, DOOR_ONLY, HYPOTHESES, WEIGHT_SETS, Handle, prior_weights
-from drawer_lib.bench.cases import CASES, Scene, run_cases
+from drawer_lib.bench.cases import CASES, Scene, run_cases, single_sliding_door
 from drawer_lib.config.typed import to_typed
 from drawer_lib.errors import ConfigError
 from drawer_lib.io.parts import Front
@@ -216,7 +216,7 @@ def test_the_moved_fronts_tracks_are_those_of_the_moved_fronts():
     rail_extent of the front moved (the slow reference: every point)."""
     f = Front((0.25, -0.6, 0.5), (0, -1.0, 0), (1.0, 0, 0), (0.5, 0.6))
     g = np.random.default_rng(2)
-    # a rail 5 mm proud along the top edge, a counter and clutter all around
+    # a rail 5 mm proud along the top edge, and clutter all around
     rail = np.stack([g.uniform(-0.25, 0.75, 600), np.full(600, -0.605), g.uniform(0.805, 0.84, 600)], -1)
     clutter = g.uniform([-2.0, -1.0, -0.5], [2.5, 0.2, 2.0], (3000, 3))
     pts = np.concatenate([rail, clutter])
@@ -238,11 +238,7 @@ def test_a_track_near_its_bound_is_reported_near_track(proud, near):
     """A single sliding door whose track stands 5 mm proud (1 mm over the test's 4 mm) is
     typed sliding, and is listed near_track and low_margin: its plane 2 mm out loses the track
     and the door. 12 mm proud, nothing another machine's mesh does turns it."""
-    s = Scene()
-    s.static([0.0, -0.35, 1.45], [0.018, 0.0, 2.15]).static([0.882, -0.35, 1.45], [0.9, 0.0, 2.15])
-    s.static([0.0, -0.35, 1.45], [0.9, 0.0, 1.468]).static([0.0, -0.35, 1.78], [0.9, -0.008, 1.798])
-    s.static([0.0, -0.39 - proud, 2.12], [0.9, -0.35, 2.15])  # the rail, the cabinet's full width
-    (p,), rep, _ = s.front(0.0015, 0.46, 1.4515, 2.117, -0.39, (0.045, 1.78, "v", 0.13)).run(CFG, PRIOR)
+    (p,), rep, _ = single_sliding_door(proud).run(CFG, PRIOR)
     row = next(r for r in rep if r.get("part") == p.id)
     assert p.extra["family"] == "sliding" and row["features"]["rail"] > 0.9
     assert ("near_track" in row) is near and row["low_margin"] is near and p.extra["low_margin"] is near
