@@ -162,7 +162,8 @@ def kitchen(split: str, k: int, models: list[str], out: Path, weights: list[Path
         art = v.stage_dir("articulate") if decisions is None else v.root / FITTED_DIR
         with stage_run("articulate", art, seed) as r:
             r.metrics.update(run_articulate(ac, vcap, src.stage_dir("decompose"), r,
-                                            weights=ac.types.prior if decisions is None else decisions[model]))
+                                            weights=ac.types.prior if decisions is None else decisions[model],
+                                            recheck=(to_typed(DecomposeConfig, cfg.decompose, "decompose"), sp.mesh)))
         s = score_kitchen(sp, art / v.parts.name)
         dm = read_json(d.metrics("detect"))
         row[model] = {"precision": s["precision"], "recall": s["recall"], "ea_score": s.get("ea_score"),

@@ -19,6 +19,7 @@ from drawer_lib.articulation.weights import resolve_weights
 from drawer_lib.config.stage import open_capture, scene_name, scene_paths
 from drawer_lib.config.typed import to_typed
 from drawer_lib.paths import BenchPaths
+from drawer_lib.perception.config import DecomposeConfig
 from drawer_lib.runner import main_guard, stage_run
 
 
@@ -31,7 +32,8 @@ def main(cfg: DictConfig) -> None:
     cap = open_capture(src, detections=True, check_files=False)
     weights = resolve_weights(ac.types, BenchPaths(Path(cfg.paths.bench)).weights)
     with stage_run("articulate", dst.stage_dir("articulate"), seed=cfg.seed) as run:
-        run.metrics.update(run_articulate(ac, cap, src.decompose, run, weights))
+        recheck = (to_typed(DecomposeConfig, cfg.decompose, "decompose"), src.mesh)  # articulate.check reruns decompose
+        run.metrics.update(run_articulate(ac, cap, src.decompose, run, weights, recheck=recheck))
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """Config of the ``articulate`` stage (conf/articulate/default.yaml): every threshold that
 changes a result, grouped by the step that uses it. Lengths in metres, angles in degrees."""
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -535,6 +536,25 @@ class VlmConfig:
 
 
 @dataclass(frozen=True)
+class CheckConfig:
+    """The parts inferred again from the mesh moved as another machine's reconstruction could
+    move it (:func:`drawer_lib.articulation.robustness.mesh_check`): ``runs`` times (0: off),
+    decompose and articulate rerun on the mesh whose every vertex moved by Gaussian noise of
+    ``sigma`` metres (each run its own draw); a part that any run gives another kind or hinge
+    side, or no part, is listed ``near_mesh`` and marked ``low_margin``. Its kinds are not
+    changed. Costs ``runs`` x (decompose + articulate)."""
+
+    runs: int = 0
+    sigma: float = 1e-6
+
+    def __post_init__(self):
+        if self.runs < 0:
+            raise ConfigError(f"articulate.check.runs = {self.runs}: must be >= 0")
+        if not (self.sigma > 0 and math.isfinite(self.sigma)):
+            raise ConfigError(f"articulate.check.sigma = {self.sigma}: must be a finite length > 0 (m)")
+
+
+@dataclass(frozen=True)
 class ArticulateConfig:
     """Segments -> ``parts.json`` (``drawer.parts/1``, docs/formats.md). ``estimator``: ``geometric`` (built in: plane,
     rectangle, handle and layout cues), ``vlm`` (the same, with a local vision-language model's
@@ -553,6 +573,7 @@ class ArticulateConfig:
     interaction: InteractionConfig = field(default_factory=InteractionConfig)
     false_fronts: FalseFrontsConfig = field(default_factory=FalseFrontsConfig)
     vlm: VlmConfig = field(default_factory=VlmConfig)
+    check: CheckConfig = field(default_factory=CheckConfig)
 
     def __post_init__(self):
         check_max_side("articulate.max_side", self.max_side)

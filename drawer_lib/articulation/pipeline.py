@@ -1,6 +1,7 @@
 """What the ``articulate`` stage does: the decompose outputs + capture -> ``parts.json``
 (``drawer.parts/1``, docs/formats.md) and ``decisions.json`` (why each segment got its type)."""
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -8,7 +9,7 @@ import numpy as np
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.articulation.estimators import get_estimator
 from drawer_lib.articulation.rectify import View
-from drawer_lib.errors import InputError
+from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
@@ -62,10 +63,16 @@ def train_views(cap: Capture, mesh, with_images: bool = False) -> list[View]:
 
 
 def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: StageRun,
-                   weights: dict[str, dict[str, float]] | None = None) -> dict:
+                   weights: dict[str, dict[str, float]] | None = None, recheck: tuple | None = None) -> dict:
     """Infer the parts of the segments in ``seg_dir`` (a decompose output) and write them;
     ``weights``: the score rule's (:func:`drawer_lib.articulation.weights.resolve_weights`;
-    None: ``cfg.types.prior``)."""
+    None: ``cfg.types.prior``). ``recheck``: (decompose's config, the mesh decompose read), which
+    ``cfg.check.runs`` > 0 needs to infer the parts again from the mesh moved by its last bits
+    (:func:`drawer_lib.articulation.robustness.mesh_check`)."""
+    if cfg.check.runs and recheck is None:
+        raise ConfigError(f"articulate.check.runs = {cfg.check.runs}: the caller gave no decompose config and mesh "
+                          "to run the check on (set articulate.check.runs=0)")
+    cap0 = cap
     est = get_estimator(cfg.estimator)
     extra = {}
     if cfg.estimator == "vlm":  # loaded first: a missing model stops the stage before any work
@@ -87,6 +94,14 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
             train_views(cap, mesh, with_images=True)
     parts, report = est(mesh, segs, centers, cfg, handle_hits=hits, masks_of=masks_of, face_views=face_views,
                         weights=weights, views=views, **extra)
+    checked = {}
+    if cfg.check.runs:
+        from drawer_lib.articulation.robustness import mark_near_mesh, mesh_check
+
+        t0 = time.perf_counter()
+        moved = mesh_check(cfg, recheck[0], cap0, Path(recheck[1]), weights, PartsFile(tuple(parts)), run.progress)
+        parts, report = mark_near_mesh(parts, report, moved)
+        checked = {"n_near_mesh": len(moved), "check_s": round(time.perf_counter() - t0, 1)}
     pf = PartsFile(tuple(parts))
     write_parts(run.out("parts"), pf)
     write_json(run.out("decisions"), {"estimator": cfg.estimator, "segments": report})
@@ -96,4 +111,4 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
         fam[f] = fam.get(f, 0) + 1
     return {"estimator": cfg.estimator, "n_parts": len(parts), **{f"n_{k}": v for k, v in pf.kinds().items()},
             "families": fam, "n_fronts_cut_back": sum("cut_back" in r for r in report if r.get("part")),
-            "n_fronts_found_twice": sum("inside" in r for r in report)}
+            "n_fronts_found_twice": sum("inside" in r for r in report), **checked}

@@ -78,7 +78,8 @@ def build_kitchen(name: str, scene: SceneConfig, cfgs: KitchenConfigs, dst: Scen
         r.metrics.update(run_decompose(cfgs.decompose, cap, dst.mesh, r))
     out["decompose_s"] = _wall(dst, "decompose")
     with step("articulate") as r:
-        r.metrics.update(run_articulate(cfgs.articulate, cap, dst.decompose, r, weights=cfgs.articulate.types.prior))
+        r.metrics.update(run_articulate(cfgs.articulate, cap, dst.decompose, r, weights=cfgs.articulate.types.prior,
+                                        recheck=(cfgs.decompose, dst.mesh)))
     out["articulate_s"] = _wall(dst, "articulate")
     return out
 
