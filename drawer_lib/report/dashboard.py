@@ -305,7 +305,8 @@ def _low_margin(data: ReportData) -> Table:
 
 NEAR_STEPS = (("near_segment", "the segment's selection"), ("near_cuts", "a cut"),
               ("near_handle", "a second pull"), ("near_colour", "the pull read off its colours"),
-              ("near_track", "the track test"), ("glazed_near", "the glazed rules"))
+              ("near_track", "the track test"), ("near_mesh", "the mesh moved by its last bits"),
+              ("glazed_near", "the glazed rules"))
 
 
 def near_steps(row: dict) -> str:
