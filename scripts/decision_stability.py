@@ -13,12 +13,13 @@ from pathlib import Path
 
 import yaml
 
-from drawer_lib.articulation.robustness import compare_parts, jitter_run
+from drawer_lib.articulation.robustness import jitter_run
 from drawer_lib.articulation.weights import resolve_weights
 from drawer_lib.articulation.config import ArticulateConfig
 from drawer_lib.config.typed import to_typed
 from drawer_lib.io.capture import load_capture
 from drawer_lib.io.parts import read_parts
+from drawer_lib.metrics.articulation import compare_parts
 from drawer_lib.paths import BenchPaths, ScenePaths
 
 ROOT = Path(__file__).resolve().parent.parent

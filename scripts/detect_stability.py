@@ -35,9 +35,10 @@ from pathlib import Path
 import numpy as np
 
 from bench_detect import variant  # the folder bench_detect writes a model's outputs to
-from drawer_lib.articulation.robustness import compare_parts, stability_counts
+from drawer_lib.articulation.robustness import stability_counts
 from drawer_lib.io.images import read_json, read_u16
 from drawer_lib.io.parts import read_parts
+from drawer_lib.metrics.articulation import compare_parts
 from drawer_lib.paths import ScenePaths
 
 COUNTS = ("n_ref", "n_other", "kept", "retyped", "lost", "added", "n_flagged", "moved_flagged")

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import yaml
 
-from drawer_lib.articulation.robustness import compare_parts
+from drawer_lib.metrics.articulation import compare_parts
 from drawer_lib.io.parts import read_parts
 from drawer_lib.paths import ScenePaths
 

@@ -1,6 +1,8 @@
 """What the ``articulate`` stage does: the decompose outputs + capture -> ``parts.json``
 (``drawer.parts/1``, docs/formats.md) and ``decisions.json`` (why each segment got its type)."""
 
+import dataclasses
+import tempfile
 import time
 from pathlib import Path
 
@@ -13,11 +15,15 @@ from drawer_lib.errors import ConfigError, InputError
 from drawer_lib.geometry.camera import Camera
 from drawer_lib.io.capture import Capture
 from drawer_lib.io.images import write_json
-from drawer_lib.io.parts import PartsFile, write_parts
+from drawer_lib.io.mesh import load_mesh
+from drawer_lib.io.parts import Part, PartsFile, read_parts, write_parts
 from drawer_lib.io.working import at_working_size, working_size_metrics
 from drawer_lib.perception.decompose import HANDLE_LABELS, Segment, absorb_handles
-from drawer_lib.perception.pipeline import load_segments
-from drawer_lib.runner import StageRun
+from drawer_lib.metrics.articulation import compare_parts
+from drawer_lib.paths import stage_name
+from drawer_lib.perception.pipeline import load_segments, run_decompose
+from drawer_lib.perturb import jitter_mesh
+from drawer_lib.runner import StageRun, stage_run
 
 
 def mask_source(cap: Capture):
@@ -96,8 +102,6 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
                         weights=weights, views=views, **extra)
     checked = {}
     if cfg.check.runs:
-        from drawer_lib.articulation.robustness import mark_near_mesh, mesh_check
-
         t0 = time.perf_counter()
         moved = mesh_check(cfg, recheck[0], cap0, Path(recheck[1]), weights, PartsFile(tuple(parts)), run.progress)
         parts, report = mark_near_mesh(parts, report, moved)
@@ -112,3 +116,49 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
     return {"estimator": cfg.estimator, "n_parts": len(parts), **{f"n_{k}": v for k, v in pf.kinds().items()},
             "families": fam, "n_fronts_cut_back": sum("cut_back" in r for r in report if r.get("part")),
             "n_fronts_found_twice": sum("inside" in r for r in report), **checked}
+
+
+def mesh_check(cfg: ArticulateConfig, decompose_cfg, cap: Capture, mesh_path: Path, weights: dict | None,
+               ref: PartsFile, progress=None) -> dict[str, list[dict]]:
+    """Which parts of ``ref`` (articulate's result on ``cap`` and the mesh at ``mesh_path``)
+    another machine's reconstruction could change: ``cfg.check.runs`` times, the mesh's every
+    vertex moved by Gaussian noise of ``cfg.check.sigma`` m (run k's draw seeded by
+    ``[decompose_cfg.seed, round(sigma * 1e12), k + 1]``, apart from ``decompose.mesh_jitter``'s),
+    then decompose (``decompose_cfg``, a
+    :class:`~drawer_lib.perception.config.DecomposeConfig`) and articulate (``cfg`` without its
+    check) run on it in a temporary folder, and the parts compared on their fronts
+    (:func:`~drawer_lib.metrics.articulation.compare_parts`). Returns {part id: [{"run": k,
+    "now": its kind in that run, or ``missed``}]} for each part some run did not keep; ``{}``
+    with ``cfg.check.runs`` 0.
+    ``progress``: a :meth:`StageRun.progress`-like wrapper for the runs, or None."""
+    sigma, runs = cfg.check.sigma, cfg.check.runs
+    inner = dataclasses.replace(cfg, check=dataclasses.replace(cfg.check, runs=0))
+    inner_dc = dataclasses.replace(decompose_cfg, mesh_jitter=0.0)
+    mesh = load_mesh(mesh_path, "run the mesh stage first")
+    moved: dict[str, list[dict]] = {}
+    ks = range(runs) if progress is None else progress(range(runs), desc="mesh check", total=runs)
+    for k in ks:
+        with tempfile.TemporaryDirectory() as tmp:
+            t = Path(tmp)
+            mp = t / stage_name("mesh", "mesh")
+            jitter_mesh(mesh, sigma, [int(decompose_cfg.seed), round(sigma * 1e12), k + 1]).export(mp)
+            with stage_run("decompose", t / "decompose", seed=0) as r:
+                run_decompose(inner_dc, cap, mp, r)
+            with stage_run("articulate", t / "articulate", seed=0) as r:
+                run_articulate(inner, cap, t / "decompose", r, weights=weights)
+            other = read_parts(t / "articulate" / stage_name("articulate", "parts"))
+        for row in compare_parts(ref, other):
+            if not row["kept"]:
+                moved.setdefault(row["part"], []).append({"run": k, "now": row["now"]})
+    return moved
+
+
+def mark_near_mesh(parts: list[Part], report: list[dict], moved: dict[str, list[dict]]
+                   ) -> tuple[list[Part], list[dict]]:
+    """``parts`` and articulate's ``report`` (its ``decisions.json`` rows) with each part in
+    ``moved`` (:func:`mesh_check`) marked ``low_margin`` and its row given ``near_mesh``: the
+    runs that changed it. Kinds, joints and fronts stay as they are."""
+    out = [dataclasses.replace(p, extra={**p.extra, "low_margin": True}) if p.id in moved else p for p in parts]
+    rows = [{**r, "near_mesh": moved[r["part"]], "low_margin": True} if r.get("part") in moved else r
+            for r in report]
+    return out, rows

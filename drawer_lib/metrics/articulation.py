@@ -367,3 +367,18 @@ def rigid_metrics(pred: PartsFile, gt: PartsFile, iou_min: float = RIGID_IOU_MIN
     details = [{"gt": g.id, "pred": P[pairs[j][0]].id if j in pairs else None,
                 "iou": round(pairs[j][1], 4) if j in pairs else None} for j, g in enumerate(G)]
     return out, details
+
+
+def compare_parts(ref: PartsFile, other: PartsFile) -> list[dict]:
+    """Per articulated part of ``ref``: its kind, the kind of the part of ``other`` on the same
+    front (front overlap, as the articulation metrics match) or ``missed``, whether it kept it,
+    and ``ref``'s margin."""
+    m = match_parts(other, ref)
+    by_ref = {j: i for i, j, _ in m.pairs}
+    rows = []
+    for j, g in enumerate(m.gt):
+        k_ref = part_kind(g)
+        k_new = part_kind(m.pred[by_ref[j]]) if j in by_ref else "missed"
+        rows.append({"part": g.id, "kind": k_ref, "now": k_new, "kept": k_ref == k_new,
+                     "margin": g.extra.get("margin")})
+    return rows

@@ -7,8 +7,9 @@ import pytest
 import trimesh
 
 from drawer_lib.articulation.joints import hinge_axis
-from drawer_lib.articulation.robustness import compare_parts, stability_counts
+from drawer_lib.articulation.robustness import stability_counts
 from drawer_lib.io.parts import Axis, Front, Part, PartsFile
+from drawer_lib.metrics.articulation import compare_parts
 from drawer_lib.perturb import jitter_mesh
 
 A = Front((1.0, -0.6, 0.5), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.6, 0.7))
@@ -57,7 +58,7 @@ def test_stability_counts_add_up_kept_retyped_lost_and_added():
 
 
 def test_mark_near_mesh_flags_the_moved_parts_and_changes_nothing_else():
-    from drawer_lib.articulation.robustness import mark_near_mesh
+    from drawer_lib.articulation.pipeline import mark_near_mesh
 
     parts = [_door(A, "left"), _drawer(B)]
     report = [{"segment": 0, "part": "door_0", "low_margin": False}, {"segment": 1, "part": "drawer_0", "low_margin": False},
