@@ -122,7 +122,8 @@ def test_from_tag_reruns_articulate_alone_on_the_tagged_runs_outputs(tmp_path, m
     monkeypatch.setattr(mod, "apply_overlay", lambda cap, index: calls.append(("overlay", index)))
     monkeypatch.setattr(mod, "run_detect", lambda *a, **kw: calls.append("detect") or {})
     monkeypatch.setattr(mod, "run_decompose", lambda *a, **kw: calls.append("decompose") or {})
-    monkeypatch.setattr(mod, "run_articulate", lambda ac, cap, dec, r, weights: calls.append(("articulate", dec, r.dir)) or {})
+    monkeypatch.setattr(mod, "run_articulate",
+                        lambda ac, cap, dec, r, weights, recheck: calls.append(("articulate", dec, r.dir, recheck[1])) or {})
     monkeypatch.setattr(mod, "score_kitchen", lambda sp, parts: calls.append(("score", parts)) or {
         "precision": 1.0, "recall": 1.0, "n_pred": 1, "n_ignored": 0, "n_gt": 1, "n_correct": 1})
     row = mod.kitchen("train", 16, ["builtin"], tmp_path, [tmp_path / "w.pt"], tag="hm", from_tag="swa",
@@ -130,7 +131,8 @@ def test_from_tag_reruns_articulate_alone_on_the_tagged_runs_outputs(tmp_path, m
     src, dst = k / "by_detector" / "builtin-swa", k / "by_detector" / "builtin-hm"
     assert "detect" not in calls and "decompose" not in calls
     assert calls[0] == ("overlay", src / "detect" / "detect.json")
-    assert calls[1] == ("articulate", src / "decompose", dst / ".articulate.tmp")  # written atomically
+    # written atomically; articulate.check, when on, would move the kitchen's own mesh
+    assert calls[1] == ("articulate", src / "decompose", dst / ".articulate.tmp", k / "mesh" / "mesh.ply")
     assert calls[2] == ("score", dst / "articulate" / "parts.json")
     assert row["builtin"]["n_correct"] == 1 and row["builtin"]["source"] == "detections"
 
