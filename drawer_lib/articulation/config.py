@@ -538,7 +538,7 @@ class VlmConfig:
 @dataclass(frozen=True)
 class CheckConfig:
     """The parts inferred again from the mesh moved as another machine's reconstruction could
-    move it (:func:`drawer_lib.articulation.robustness.mesh_check`): ``runs`` times (0: off),
+    move it (:func:`drawer_lib.articulation.pipeline.mesh_check`): ``runs`` times (0: off),
     decompose and articulate rerun on the mesh whose every vertex moved by Gaussian noise of
     ``sigma`` metres (each run its own draw); a part that any run gives another kind or hinge
     side, or no part, is listed ``near_mesh`` and marked ``low_margin``. Its kinds are not

@@ -18,9 +18,9 @@ from drawer_lib.io.images import write_json
 from drawer_lib.io.mesh import load_mesh
 from drawer_lib.io.parts import Part, PartsFile, read_parts, write_parts
 from drawer_lib.io.working import at_working_size, working_size_metrics
-from drawer_lib.perception.decompose import HANDLE_LABELS, Segment, absorb_handles
 from drawer_lib.metrics.articulation import compare_parts
 from drawer_lib.paths import stage_name
+from drawer_lib.perception.decompose import HANDLE_LABELS, Segment, absorb_handles
 from drawer_lib.perception.pipeline import load_segments, run_decompose
 from drawer_lib.perturb import jitter_mesh
 from drawer_lib.runner import StageRun, stage_run
@@ -74,7 +74,7 @@ def run_articulate(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, run: Stag
     ``weights``: the score rule's (:func:`drawer_lib.articulation.weights.resolve_weights`;
     None: ``cfg.types.prior``). ``recheck``: (decompose's config, the mesh decompose read), which
     ``cfg.check.runs`` > 0 needs to infer the parts again from the mesh moved by its last bits
-    (:func:`drawer_lib.articulation.robustness.mesh_check`)."""
+    (:func:`mesh_check`)."""
     if cfg.check.runs and recheck is None:
         raise ConfigError(f"articulate.check.runs = {cfg.check.runs}: the caller gave no decompose config and mesh "
                           "to run the check on (set articulate.check.runs=0)")

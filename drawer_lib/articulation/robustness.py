@@ -55,4 +55,3 @@ def jitter_run(cfg: ArticulateConfig, cap: Capture, seg_dir: Path, weights: dict
         with stage_run("articulate", out, seed=0) as r:
             run_articulate(cfg, cap, d, r, weights=weights)
         return read_parts(out / stage_name("articulate", "parts"))
-
